@@ -1,0 +1,71 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <span>
+
+#include "ultrasim/geometry/tet_locator.hpp"
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/imaging/settings.hpp"
+#include "ultrasim/imaging/volume.hpp"
+
+namespace ultrasim::imaging {
+
+// Where the probe is: the centre of its face and its axes (columns: lateral +x along the array,
+// elevational +y, axial +z along the beam), all in patient space, mm.
+struct ProbePose {
+  Eigen::Vector3d face_center_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+
+  Eigen::Vector3d to_patient(const Eigen::Vector2d& in_plane_mm) const {
+    return face_center_mm + axes.col(0) * in_plane_mm.x() + axes.col(2) * in_plane_mm.y();
+  }
+};
+
+// The image rectangle in the probe's plane, in the probe frame (lateral x, axial z), mm.
+// Linear: [-width/2, width/2] × [0, depth]. Convex: the bounding box of the sector, whose arc
+// apex is the face centre and whose centre of curvature lies radius_mm behind it.
+struct ImageExtent {
+  double x_min_mm, x_max_mm, z_min_mm, z_max_mm;
+  double width_mm() const { return x_max_mm - x_min_mm; }
+  double depth_mm() const { return z_max_mm - z_min_mm; }
+};
+ImageExtent image_extent(const ProbeGeometry& probe);
+
+// Maps image pixels to points in the probe plane. Pixel (col, row) samples its centre; row 0 is
+// nearest the face. For a convex probe, pixels outside the sector map to nothing.
+class BscanGrid {
+ public:
+  BscanGrid(const ProbeGeometry& probe, int width_px, int height_px);
+  std::optional<Eigen::Vector2d> pixel_to_plane_mm(int col, int row) const;
+  int width_px() const { return width_px_; }
+  int height_px() const { return height_px_; }
+  const ImageExtent& extent() const { return extent_; }
+
+ private:
+  ProbeGeometry probe_;
+  ImageExtent extent_;
+  int width_px_, height_px_;
+};
+
+// Echo level → displayed grey level: gain in dB, rounded, clamped to [0, 255].
+std::uint8_t apply_gain(float echo, double gain_db);
+
+// B-scan of the undeformed volume: trilinear samples on the probe plane. `out` holds
+// width_px × height_px bytes, row-major. Does not allocate.
+void slice_undeformed(const Volume<std::uint8_t>& volume, const ProbePose& pose,
+                      const BscanGrid& grid, const BscanSettings& settings,
+                      std::span<std::uint8_t> out);
+
+// B-scan of the deformed tissue, per pixel (the reference every fast slicer must match): locate
+// the pixel in the deformed mesh, map it with the tet's barycentric coordinates back to the rest
+// mesh, and sample the volume there. Pixels outside the deformed mesh or the volume show the
+// background grey. `locator` must have been rebuilt on the deformed positions; `mesh` gives the
+// rest positions. Does not allocate; read-only on its inputs.
+void slice_deformed_reference(const Volume<std::uint8_t>& volume, const geometry::TetMesh& mesh,
+                              const geometry::TetLocator& locator, const ProbePose& pose,
+                              const BscanGrid& grid, const BscanSettings& settings,
+                              std::span<std::uint8_t> out);
+
+}  // namespace ultrasim::imaging

@@ -1,0 +1,25 @@
+#pragma once
+
+namespace ultrasim::imaging {
+
+enum class ProbeKind { kLinear, kConvex };
+
+// Transducer geometry. Linear: a rectangle of width_mm × depth_mm below the face. Convex: an
+// annular sector of fan_angle_deg, from the face arc of radius_mm down to depth_mm below it.
+struct ProbeGeometry {
+  ProbeKind kind = ProbeKind::kLinear;
+  double width_mm = 38.0;       // linear: aperture width
+  double depth_mm = 40.0;       // imaging depth below the face, both kinds
+  double radius_mm = 50.0;      // convex: radius of curvature of the face
+  double fan_angle_deg = 60.0;  // convex: total opening angle of the sector
+};
+
+// The B-scan image grid and display mapping.
+struct BscanSettings {
+  int width_px = 512;
+  int height_px = 512;
+  double gain_db = 0.0;  // added to every pixel's echo level before display
+  int background_grey = 0;  // grey level shown outside the volume or the mesh
+};
+
+}  // namespace ultrasim::imaging

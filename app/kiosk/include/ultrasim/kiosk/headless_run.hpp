@@ -1,0 +1,26 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "ultrasim/hal/clock.hpp"
+
+namespace ultrasim::kiosk {
+
+struct HeadlessRunOptions {
+  std::filesystem::path case_dir;
+  std::optional<std::filesystem::path> app_config;  // app.toml; defaults when absent
+  std::filesystem::path out_dir;                     // created if missing
+  std::string script = "sweep-press";                // the scripted probe's motion
+};
+
+// Runs the kiosk without a screen: a scripted probe plays through the case on a fixed virtual
+// frame clock (one frame per frame budget, so the output is deterministic), every frame is
+// simulated, sliced and rendered offscreen, and at each of the script's markers the B-scan and
+// the whole screen are written as PNGs. Writes report.json (frames, frame-time percentiles per
+// stage, deadline misses, contact force) into out_dir. `clock` measures how long work took.
+// Throws on bad input (naming the file); returns the report's path.
+std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock);
+
+}  // namespace ultrasim::kiosk

@@ -1,0 +1,44 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "ultrasim/sched/frame_time_stats.hpp"
+
+namespace ultrasim::kiosk {
+
+struct Snapshot {
+  std::string marker;
+  std::int64_t frame = 0;
+  std::string bscan_png;
+  std::string screen_png;
+  double contact_force_n = 0.0;
+};
+
+// Everything a headless run measured.
+struct RunReport {
+  std::string case_name;
+  std::string renderer;
+  int mesh_nodes = 0;
+  int mesh_tets = 0;
+  int bscan_width_px = 0;
+  int bscan_height_px = 0;
+  int pcg_iterations_per_frame = 0;
+  std::int64_t frames = 0;
+  std::int64_t poses_rejected = 0;
+  std::int64_t frames_in_contact = 0;
+  std::int64_t solver_resets = 0;
+  double max_contact_force_n = 0.0;
+  sched::FrameTimeStats frame{0};
+  sched::FrameTimeStats sim{0};
+  sched::FrameTimeStats slice{0};
+  sched::FrameTimeStats render{0};
+  std::vector<Snapshot> snapshots;
+};
+
+// Writes the report as JSON (times in µs). Throws std::runtime_error naming the path on failure.
+void write_report_json(const std::filesystem::path& path, const RunReport& report);
+
+}  // namespace ultrasim::kiosk

@@ -1,0 +1,63 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "ultrasim/config/app_settings.hpp"
+#include "ultrasim/geometry/tet_locator.hpp"
+#include "ultrasim/hal/clock.hpp"
+#include "ultrasim/hal/pose_sample.hpp"
+#include "ultrasim/imaging/bscan.hpp"
+#include "ultrasim/kiosk/tissue_case.hpp"
+#include "ultrasim/render/frame_input.hpp"
+#include "ultrasim/sim/linear_fem.hpp"
+
+namespace ultrasim::kiosk {
+
+// What one frame did, for the stats report.
+struct FrameOutcome {
+  bool pose_rejected = false;  // the sample was missing, unhealthy or non-finite: last good kept
+  bool in_contact = false;     // the probe touches the tissue, so there is an image
+  sim::FemStepStats fem;
+  std::int64_t sim_us = 0;    // collision + FEM solve
+  std::int64_t slice_us = 0;  // point-location rebuild + B-scan synthesis
+};
+
+// One trainee's scanning session on one case: probe pose in, deformed tissue and B-scan out.
+// The frame thread calls update() then frame_input(); nothing else touches it.
+class Session {
+ public:
+  // `tissue` and `clock` must outlive the session. Allocates all per-frame buffers.
+  Session(const TissueCase& tissue, const config::AppSettings& settings, const hal::Clock& clock);
+
+  // Advances one frame with the newest tracker sample. Never throws on bad input: a missing,
+  // unhealthy or non-finite sample is rejected and the last good pose is used (before any good
+  // pose the probe counts as lifted). Does not allocate.
+  FrameOutcome update(const std::optional<hal::PoseSample>& sample);
+
+  // Views of this frame's results for the renderer, valid until the next update().
+  render::FrameInput frame_input(std::int64_t frame_index) const;
+
+  std::span<const std::uint8_t> bscan() const { return bscan_; }
+  int bscan_width_px() const { return grid_.width_px(); }
+  int bscan_height_px() const { return grid_.height_px(); }
+  bool in_contact() const { return in_contact_; }
+  const TissueCase& tissue() const { return tissue_; }
+
+ private:
+  const TissueCase& tissue_;
+  config::AppSettings settings_;
+  const hal::Clock& clock_;
+  sim::LinearFem fem_;
+  geometry::TetLocator locator_;
+  imaging::BscanGrid grid_;
+  std::optional<hal::PoseSample> pose_;  // last good pose
+  bool in_contact_ = false;
+  std::vector<std::uint8_t> bscan_;
+  std::vector<float> node_positions_;
+  std::vector<float> node_displacement_;
+};
+
+}  // namespace ultrasim::kiosk

@@ -1,0 +1,37 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <vector>
+
+#include "ultrasim/config/case_settings.hpp"
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/imaging/volume.hpp"
+#include "ultrasim/sim/settings.hpp"
+
+namespace ultrasim::kiosk {
+
+// A case that cannot be turned into tissue (what() names the file and the cause).
+class CaseError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A case loaded and meshed, ready to simulate: immutable after loading, shared by the session.
+struct TissueCase {
+  config::CaseSettings settings;
+  imaging::Volume<std::uint8_t> volume;  // B-mode echo
+  imaging::Volume<std::uint8_t> labels;  // tissue labels (docs/case-format.md)
+  geometry::TetMesh mesh;                // rest configuration over the case's region
+  std::vector<sim::Material> tet_materials;  // one per tet, from the label at its centroid
+  std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
+  std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface
+};
+
+// Loads case.toml and its volumes, lays the tet grid over the region and assigns materials and
+// fixed nodes. Throws config::ConfigError, imaging::MetaImageError or CaseError, each naming the
+// file. Allocates; start-up only.
+TissueCase load_tissue_case(const std::filesystem::path& case_dir);
+
+}  // namespace ultrasim::kiosk

@@ -1,0 +1,108 @@
+#include "ultrasim/kiosk/headless_run.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "ultrasim/config/app_settings.hpp"
+#include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
+#include "ultrasim/kiosk/run_report.hpp"
+#include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/kiosk/tissue_case.hpp"
+#include "ultrasim/render/offscreen_display.hpp"
+#include "ultrasim/render/png_writer.hpp"
+#include "ultrasim/render/scene_renderer.hpp"
+
+namespace ultrasim::kiosk {
+
+namespace {
+
+std::vector<drivers::sim_probe::Keyframe> make_script(const std::string& name,
+                                                      const config::CaseScan& scan) {
+  if (name != "sweep-press") {
+    throw std::invalid_argument("unknown script '" + name + "'; available: sweep-press");
+  }
+  const Eigen::Vector3d start(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]);
+  const Eigen::Vector3d end(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2]);
+  return drivers::sim_probe::sweep_press_script(start, end, scan.press_depth_mm);
+}
+
+}  // namespace
+
+std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock) {
+  const config::AppSettings settings = options.app_config
+                                           ? config::load_app_settings(*options.app_config)
+                                           : config::AppSettings{};
+  const TissueCase tissue = load_tissue_case(options.case_dir);
+  drivers::sim_probe::ScriptedProbe probe(make_script(options.script, tissue.settings.scan));
+
+  std::filesystem::create_directories(options.out_dir);
+  render::OffscreenDisplay display(settings.display);
+  render::SceneRenderer renderer(display);
+  Session session(tissue, settings, clock);
+
+  RunReport report;
+  report.case_name = tissue.settings.name;
+  report.renderer = display.renderer_name();
+  report.mesh_nodes = tissue.mesh.node_count();
+  report.mesh_tets = tissue.mesh.tet_count();
+  report.bscan_width_px = session.bscan_width_px();
+  report.bscan_height_px = session.bscan_height_px();
+  report.pcg_iterations_per_frame = settings.fem.pcg_iterations_per_frame;
+  const std::int64_t budget_us = settings.frame.budget_us;
+  report.frame = sched::FrameTimeStats(budget_us);
+
+  // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
+  // the session (and its screenshots) are the same on every run.
+  hal::ManualClock script_clock;
+  std::vector<std::pair<hal::TimestampUs, std::string>> markers;
+  for (const auto& k : probe.keyframes())
+    if (!k.marker.empty()) markers.emplace_back(k.time_us, k.marker);
+  std::size_t next_marker = 0;
+  render::RgbaImage screen;
+
+  // One frame past the script's end, so its last moment is shown too.
+  const std::int64_t frame_count = probe.duration_us() / budget_us + 2;
+  for (std::int64_t frame = 0; frame < frame_count; ++frame) {
+    const hal::TimestampUs now = script_clock.now_us();
+    const hal::TimestampUs start = clock.now_us();
+    const FrameOutcome outcome = session.update(probe.latest(now));
+    const hal::TimestampUs rendered_from = clock.now_us();
+    display.begin_frame();
+    renderer.draw(session.frame_input(frame));
+    display.end_frame();
+    const hal::TimestampUs end = clock.now_us();
+
+    report.frames += 1;
+    report.poses_rejected += outcome.pose_rejected;
+    report.frames_in_contact += outcome.in_contact;
+    report.solver_resets += outcome.fem.reset_after_divergence;
+    report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.fem.contact_force_n);
+    report.sim.record(outcome.sim_us);
+    report.slice.record(outcome.slice_us);
+    report.render.record(end - rendered_from);
+    report.frame.record(end - start);
+
+    // A marker is shown by the last frame at or before it: the next frame would be past it.
+    while (next_marker < markers.size() && markers[next_marker].first < now + budget_us) {
+      Snapshot snap;
+      snap.marker = markers[next_marker].second;
+      snap.frame = frame;
+      snap.contact_force_n = outcome.fem.contact_force_n;
+      snap.bscan_png = "bscan-" + snap.marker + ".png";
+      snap.screen_png = "screen-" + snap.marker + ".png";
+      render::write_png_grey(options.out_dir / snap.bscan_png, session.bscan(),
+                             session.bscan_width_px(), session.bscan_height_px());
+      display.read_pixels_into(screen);
+      render::write_png(options.out_dir / snap.screen_png, screen);
+      report.snapshots.push_back(snap);
+      ++next_marker;
+    }
+    script_clock.advance_us(budget_us);
+  }
+
+  const auto report_path = options.out_dir / "report.json";
+  write_report_json(report_path, report);
+  return report_path;
+}
+
+}  // namespace ultrasim::kiosk

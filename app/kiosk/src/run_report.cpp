@@ -1,0 +1,68 @@
+#include "ultrasim/kiosk/run_report.hpp"
+
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace ultrasim::kiosk {
+
+namespace {
+
+std::string quoted(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) < 0x20) continue;  // no control characters in names
+    out += c;
+  }
+  return out + "\"";
+}
+
+void write_stats(std::ostream& out, const sched::FrameTimeStats& s) {
+  out << "{\"count\": " << s.count() << ", \"min_us\": " << s.min_us()
+      << ", \"mean_us\": " << static_cast<std::int64_t>(s.mean_us())
+      << ", \"p50_us\": " << s.percentile_us(50) << ", \"p90_us\": " << s.percentile_us(90)
+      << ", \"p99_us\": " << s.percentile_us(99) << ", \"max_us\": " << s.max_us()
+      << ", \"budget_us\": " << s.budget_us() << ", \"deadline_misses\": " << s.deadline_misses()
+      << "}";
+}
+
+}  // namespace
+
+void write_report_json(const std::filesystem::path& path, const RunReport& r) {
+  std::ostringstream out;
+  out << "{\n"
+      << "  \"case\": " << quoted(r.case_name) << ",\n"
+      << "  \"renderer\": " << quoted(r.renderer) << ",\n"
+      << "  \"mesh\": {\"nodes\": " << r.mesh_nodes << ", \"tets\": " << r.mesh_tets << "},\n"
+      << "  \"bscan\": {\"width_px\": " << r.bscan_width_px
+      << ", \"height_px\": " << r.bscan_height_px << "},\n"
+      << "  \"fem\": {\"method\": \"linear-pcg\", \"pcg_iterations_per_frame\": "
+      << r.pcg_iterations_per_frame << ", \"max_contact_force_n\": " << r.max_contact_force_n
+      << ", \"solver_resets\": " << r.solver_resets << "},\n"
+      << "  \"frames\": " << r.frames << ",\n"
+      << "  \"frames_in_contact\": " << r.frames_in_contact << ",\n"
+      << "  \"poses_rejected\": " << r.poses_rejected << ",\n"
+      << "  \"frame_time\": ";
+  write_stats(out, r.frame);
+  out << ",\n  \"stages\": {\n    \"sim\": ";
+  write_stats(out, r.sim);
+  out << ",\n    \"bscan\": ";
+  write_stats(out, r.slice);
+  out << ",\n    \"render\": ";
+  write_stats(out, r.render);
+  out << "\n  },\n  \"snapshots\": [";
+  for (std::size_t i = 0; i < r.snapshots.size(); ++i) {
+    const Snapshot& s = r.snapshots[i];
+    out << (i ? ",\n" : "\n") << "    {\"marker\": " << quoted(s.marker) << ", \"frame\": " << s.frame
+        << ", \"bscan\": " << quoted(s.bscan_png) << ", \"screen\": " << quoted(s.screen_png)
+        << ", \"contact_force_n\": " << s.contact_force_n << "}";
+  }
+  out << "\n  ]\n}\n";
+
+  std::ofstream file(path);
+  file << out.str();
+  if (!file) throw std::runtime_error(path.string() + ": cannot write the report");
+}
+
+}  // namespace ultrasim::kiosk

@@ -1,0 +1,96 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/sim/settings.hpp"
+#include "ultrasim/sim/sphere_collider.hpp"
+
+namespace ultrasim::sim {
+
+// What one simulation step did, for the stats overlay and the report.
+struct FemStepStats {
+  int pcg_iterations = 0;
+  double relative_residual = 0.0;  // free-DOF residual over max(|rhs|, frame's first residual)
+  int contact_nodes = 0;
+  double contact_force_n = 0.0;   // magnitude of the total force on the contact nodes, newtons
+  bool reset_after_divergence = false;
+};
+
+// Quasi-static linear FEM as published: isotropic linear elasticity, Cauchy (small) strain,
+// linear tetrahedra, solved by Jacobi-preconditioned conjugate gradients with a fixed iteration
+// budget per frame, warm-started from the previous frame. Nodes inside the probe collider and
+// fixed nodes are Dirichlet constraints; CG runs on the free degrees of freedom only.
+//
+// Units: positions mm, moduli kPa, so K u is in mN. Single-threaded; step() does not allocate.
+class LinearFem {
+ public:
+  // tet_materials: one material per tet; fixed_nodes: one flag per node (nonzero = fixed).
+  // Throws std::invalid_argument when no node is fixed (the stiffness would be singular), a tet
+  // has no positive volume, or a material is out of its physical range. Allocates.
+  LinearFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
+            std::span<const std::uint8_t> fixed_nodes, const FemSettings& settings);
+
+  // Holds node `node` at the given displacement (mm) until released; fixed nodes stay at zero.
+  // Does not allocate.
+  void prescribe_displacement(int node, const Eigen::Vector3d& displacement_mm);
+  void release_displacement(int node);
+
+  // Collides the probe with the current shape, then runs up to pcg_iterations_per_frame.
+  FemStepStats step(const SphereCollider& collider);
+
+  // Step with nothing touching the tissue (probe lifted): tissue relaxes toward rest.
+  FemStepStats step_without_contact();
+
+  // Nodal forces K u on node n, mN: the reaction where the node is constrained, ~0 where free.
+  Eigen::Vector3d nodal_force_mn(int node) const;
+
+  // Deformed node positions (rest + displacement), mm; valid until the next step.
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const { return deformed_; }
+  // Displacement of node n, mm.
+  Eigen::Vector3d displacement_mm(int node) const { return u_.segment<3>(3 * node); }
+
+  // Runs CG on the current constraints (fixed, prescribed, and last step's contacts) until the relative residual is below `tolerance` (or
+  // max_iterations). For tests and accuracy reports: the converged answer of this frame's problem.
+  FemStepStats solve_to_tolerance(double tolerance, int max_iterations);
+
+  const Eigen::SparseMatrix<double, Eigen::RowMajor>& stiffness() const { return stiffness_; }
+  int node_count() const { return static_cast<int>(rest_.size()); }
+  int fixed_node_count() const { return fixed_count_; }
+
+ private:
+  void apply_collider(const SphereCollider* collider);
+  FemStepStats run_pcg(int max_iterations, double tolerance);
+  // Stores each contact node's push along the probe's outward normal; returns |total| in N.
+  double update_contact_forces(const SphereCollider* collider);
+  void update_deformed();
+
+  FemSettings settings_;
+  std::vector<Eigen::Vector3d> rest_;
+  std::vector<std::uint8_t> fixed_;
+  std::vector<std::uint8_t> prescribed_;
+  std::vector<std::uint8_t> in_contact_;
+  std::vector<double> contact_push_mn_;  // per node: probe's push along its outward normal
+  std::vector<std::uint8_t> only_held_by_adhesion_;  // touching, not inside: may be let go
+  std::vector<Eigen::Vector3d> u_before_contact_;    // where a let-go node returns to
+  SphereCollider last_collider_;
+  bool has_collider_ = false;
+  int fixed_count_ = 0;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness_;
+  Eigen::VectorXd inverse_diagonal_;
+  // Per-step state and scratch, sized once.
+  Eigen::VectorXd u_, free_mask_, r_, z_, p_, q_;
+  std::vector<Eigen::Vector3d> deformed_;
+};
+
+// Element stiffness of a linear tet (12×12, node-major x,y,z) for an isotropic material.
+// Exposed for tests against hand-derived values.
+Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                                            const Eigen::Vector3d& p2, const Eigen::Vector3d& p3,
+                                            double youngs_modulus_kpa, double poisson_ratio);
+
+}  // namespace ultrasim::sim

@@ -1,0 +1,273 @@
+#include "ultrasim/sim/linear_fem.hpp"
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace ultrasim::sim {
+
+namespace {
+
+void check_material(const Material& m) {
+  if (!(m.youngs_modulus_kpa > 0) || !std::isfinite(m.youngs_modulus_kpa)) {
+    throw std::invalid_argument("material '" + m.name + "': youngs_modulus_kpa must be > 0");
+  }
+  if (!(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5)) {
+    throw std::invalid_argument("material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
+  }
+}
+
+}  // namespace
+
+Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                                            const Eigen::Vector3d& p2, const Eigen::Vector3d& p3,
+                                            double youngs_modulus_kpa, double poisson_ratio) {
+  Eigen::Matrix3d edges;
+  edges << p1 - p0, p2 - p0, p3 - p0;
+  const double volume = edges.determinant() / 6.0;
+  // Rows of edges⁻¹ are the gradients of the shape functions of nodes 1..3.
+  const Eigen::Matrix3d grads = edges.inverse();
+  Eigen::Matrix<double, 4, 3> g;
+  g.row(1) = grads.row(0);
+  g.row(2) = grads.row(1);
+  g.row(3) = grads.row(2);
+  g.row(0) = -(g.row(1) + g.row(2) + g.row(3));
+
+  // Strain-displacement matrix, Voigt order xx yy zz xy yz zx with engineering shear strains.
+  Eigen::Matrix<double, 6, 12> b = Eigen::Matrix<double, 6, 12>::Zero();
+  for (int a = 0; a < 4; ++a) {
+    const double bx = g(a, 0), by = g(a, 1), bz = g(a, 2);
+    b(0, 3 * a) = bx;
+    b(1, 3 * a + 1) = by;
+    b(2, 3 * a + 2) = bz;
+    b(3, 3 * a) = by;
+    b(3, 3 * a + 1) = bx;
+    b(4, 3 * a + 1) = bz;
+    b(4, 3 * a + 2) = by;
+    b(5, 3 * a) = bz;
+    b(5, 3 * a + 2) = bx;
+  }
+  const double e = youngs_modulus_kpa, nu = poisson_ratio;
+  const double lambda = e * nu / ((1 + nu) * (1 - 2 * nu));
+  const double mu = e / (2 * (1 + nu));
+  Eigen::Matrix<double, 6, 6> d = Eigen::Matrix<double, 6, 6>::Zero();
+  d.topLeftCorner<3, 3>().setConstant(lambda);
+  d.topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
+  d.bottomRightCorner<3, 3>().diagonal().setConstant(mu);
+  return volume * b.transpose() * d * b;
+}
+
+LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
+                     std::span<const std::uint8_t> fixed_nodes, const FemSettings& settings)
+    : settings_(settings),
+      rest_(mesh.rest_positions_mm),
+      fixed_(fixed_nodes.begin(), fixed_nodes.end()),
+      prescribed_(mesh.rest_positions_mm.size(), 0),
+      in_contact_(mesh.rest_positions_mm.size(), 0),
+      contact_push_mn_(mesh.rest_positions_mm.size(), 0.0),
+      only_held_by_adhesion_(mesh.rest_positions_mm.size(), 0),
+      u_before_contact_(mesh.rest_positions_mm.size(), Eigen::Vector3d::Zero()),
+      deformed_(mesh.rest_positions_mm) {
+  const int n = mesh.node_count();
+  if (tet_materials.size() != mesh.tets.size()) {
+    throw std::invalid_argument("LinearFem: need one material per tet");
+  }
+  if (fixed_.size() != static_cast<std::size_t>(n)) {
+    throw std::invalid_argument("LinearFem: need one fixed flag per node");
+  }
+  for (auto f : fixed_) fixed_count_ += f ? 1 : 0;
+  if (fixed_count_ == 0) {
+    throw std::invalid_argument(
+        "no fixed nodes: the stiffness matrix is singular (the tissue could float away); fix a "
+        "face or a label in the case's [mesh] table");
+  }
+  if (settings.pcg_iterations_per_frame < 1) {
+    throw std::invalid_argument("pcg_iterations_per_frame must be >= 1");
+  }
+
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(mesh.tets.size() * 144);
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
+    const auto& tet = mesh.tets[t];
+    check_material(tet_materials[t]);
+    const auto& p = rest_;
+    if (geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]) <= 0) {
+      throw std::invalid_argument("tet " + std::to_string(t) + " has no positive volume");
+    }
+    const auto ke = tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
+                                  tet_materials[t].youngs_modulus_kpa,
+                                  tet_materials[t].poisson_ratio);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            triplets.emplace_back(3 * tet[a] + i, 3 * tet[b] + j, ke(3 * a + i, 3 * b + j));
+  }
+  stiffness_.resize(3 * n, 3 * n);
+  stiffness_.setFromTriplets(triplets.begin(), triplets.end());
+  stiffness_.makeCompressed();
+  inverse_diagonal_ = stiffness_.diagonal().cwiseInverse();
+
+  u_ = Eigen::VectorXd::Zero(3 * n);
+  free_mask_ = Eigen::VectorXd::Ones(3 * n);
+  for (int node = 0; node < n; ++node) {
+    if (fixed_[node]) free_mask_.segment<3>(3 * node).setZero();
+  }
+  r_ = z_ = p_ = q_ = Eigen::VectorXd::Zero(3 * n);
+}
+
+void LinearFem::prescribe_displacement(int node, const Eigen::Vector3d& displacement_mm) {
+  if (fixed_[node]) return;
+  prescribed_[node] = 1;
+  u_.segment<3>(3 * node) = displacement_mm;
+  free_mask_.segment<3>(3 * node).setZero();
+}
+
+void LinearFem::release_displacement(int node) {
+  prescribed_[node] = 0;
+  if (!fixed_[node] && !in_contact_[node]) free_mask_.segment<3>(3 * node).setOnes();
+}
+
+Eigen::Vector3d LinearFem::nodal_force_mn(int node) const {
+  Eigen::Vector3d f;
+  for (int i = 0; i < 3; ++i) f[i] = stiffness_.row(3 * node + i).dot(u_);
+  return f;
+}
+
+void LinearFem::apply_collider(const SphereCollider* collider) {
+  const int n = node_count();
+  // Signorini contact with an active set. A node inside the probe is pushed out to its surface.
+  // A node that touched last frame and was pushed on stays on the (moved) surface, so a probe
+  // lifting slowly is followed by the tissue instead of dropping it all at once; but if holding
+  // it there would need the probe to pull (its reaction at the new place points into the
+  // probe), it is let go where it was.
+  for (int node = 0; node < n; ++node) {
+    const bool was_pressed = in_contact_[node] != 0 && contact_push_mn_[node] > 0.0;
+    in_contact_[node] = 0;
+    only_held_by_adhesion_[node] = 0;
+    if (fixed_[node]) u_.segment<3>(3 * node).setZero();
+    if (fixed_[node] || prescribed_[node] || collider == nullptr) continue;
+    const Eigen::Vector3d d = rest_[node] + u_.segment<3>(3 * node) - collider->center_mm;
+    const double dist = d.norm();
+    const bool inside = dist < collider->radius_mm;
+    if (!inside && !was_pressed) continue;
+    const Eigen::Vector3d dir = dist > 1e-12 ? Eigen::Vector3d(d / dist) : Eigen::Vector3d(0, 0, 1);
+    u_before_contact_[node] = u_.segment<3>(3 * node);
+    u_.segment<3>(3 * node) = collider->center_mm + collider->radius_mm * dir - rest_[node];
+    in_contact_[node] = 1;
+    only_held_by_adhesion_[node] = !inside;
+  }
+  if (collider != nullptr) {
+    for (int node = 0; node < n; ++node) {
+      if (!only_held_by_adhesion_[node]) continue;
+      const Eigen::Vector3d outward =
+          (rest_[node] + u_.segment<3>(3 * node) - collider->center_mm).normalized();
+      contact_push_mn_[node] = nodal_force_mn(node).dot(outward);
+    }
+    for (int node = 0; node < n; ++node) {
+      if (only_held_by_adhesion_[node] && contact_push_mn_[node] <= 0.0) {
+        u_.segment<3>(3 * node) = u_before_contact_[node];
+        in_contact_[node] = 0;
+      }
+    }
+  }
+  for (int node = 0; node < n; ++node) {
+    const bool held = fixed_[node] || prescribed_[node] || in_contact_[node];
+    free_mask_.segment<3>(3 * node).setConstant(held ? 0.0 : 1.0);
+  }
+}
+
+FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
+  FemStepStats stats;
+  // The free system is K_ff u_f = b with b = -K_fc u_c (no external loads): measure the residual
+  // against |b|, so a warm start that is already close does not make the tolerance stricter.
+  q_ = u_.cwiseProduct((1.0 - free_mask_.array()).matrix());
+  z_.noalias() = stiffness_ * q_;
+  const double rhs_norm = z_.cwiseProduct(free_mask_).norm();
+  r_.noalias() = -(stiffness_ * u_);
+  r_.array() *= free_mask_.array();
+  // With nothing prescribed (probe lifted) the answer is rest and |b| = 0: measure progress
+  // against where this frame started instead.
+  const double reference = std::max({rhs_norm, r_.norm(), 1e-30});
+  z_ = inverse_diagonal_.cwiseProduct(r_);
+  p_ = z_;
+  double rz = r_.dot(z_);
+  double residual = r_.norm();
+  int it = 0;
+  while (it < max_iterations && residual > tolerance * reference) {
+    q_.noalias() = stiffness_ * p_;
+    q_.array() *= free_mask_.array();
+    const double pq = p_.dot(q_);
+    if (!(pq > 0)) break;  // converged to rounding or the system lost definiteness
+    const double alpha = rz / pq;
+    u_.noalias() += alpha * p_;
+    r_.noalias() -= alpha * q_;
+    z_ = inverse_diagonal_.cwiseProduct(r_);
+    const double rz_next = r_.dot(z_);
+    p_ = z_ + (rz_next / rz) * p_;
+    rz = rz_next;
+    residual = r_.norm();
+    ++it;
+  }
+  stats.pcg_iterations = it;
+  stats.relative_residual = residual / reference;
+  if (!u_.allFinite()) {
+    // Never let a blown-up solve reach the screen: start again from rest.
+    u_.setZero();
+    stats.reset_after_divergence = true;
+  }
+  return stats;
+}
+
+double LinearFem::update_contact_forces(const SphereCollider* collider) {
+  Eigen::Vector3d total_mn = Eigen::Vector3d::Zero();
+  for (int node = 0; node < node_count(); ++node) {
+    contact_push_mn_[node] = 0.0;
+    if (!in_contact_[node] || collider == nullptr) continue;
+    const Eigen::Vector3d force = nodal_force_mn(node);
+    const Eigen::Vector3d outward =
+        (rest_[node] + u_.segment<3>(3 * node) - collider->center_mm).normalized();
+    contact_push_mn_[node] = force.dot(outward);
+    total_mn += force;
+  }
+  return total_mn.norm() / 1000.0;
+}
+
+void LinearFem::update_deformed() {
+  for (int node = 0; node < node_count(); ++node) {
+    deformed_[node] = rest_[node] + u_.segment<3>(3 * node);
+  }
+}
+
+FemStepStats LinearFem::step(const SphereCollider& collider) {
+  apply_collider(&collider);
+  FemStepStats stats = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
+  for (auto c : in_contact_) stats.contact_nodes += c;
+  last_collider_ = collider;
+  has_collider_ = true;
+  stats.contact_force_n = update_contact_forces(&collider);
+  update_deformed();
+  return stats;
+}
+
+FemStepStats LinearFem::step_without_contact() {
+  apply_collider(nullptr);
+  has_collider_ = false;
+  FemStepStats stats = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
+  update_contact_forces(nullptr);
+  update_deformed();
+  return stats;
+}
+
+FemStepStats LinearFem::solve_to_tolerance(double tolerance, int max_iterations) {
+  FemStepStats stats = run_pcg(max_iterations, tolerance);
+  for (auto c : in_contact_) stats.contact_nodes += c;
+  stats.contact_force_n = update_contact_forces(has_collider_ ? &last_collider_ : nullptr);
+  update_deformed();
+  return stats;
+}
+
+}  // namespace ultrasim::sim

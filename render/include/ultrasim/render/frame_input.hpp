@@ -1,0 +1,50 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+
+namespace ultrasim::render {
+
+// Everything the renderer needs for one frame, as plain views into buffers the caller owns for
+// the duration of the draw call. No simulation objects cross this line (DESIGN.md §2).
+// All lengths in mm, in patient (case) space: +x lateral, +y along the limb, +z depth into tissue.
+
+struct BscanView {
+  std::span<const std::uint8_t> pixels;  // row-major grey levels, row 0 at the probe face
+  int width_px = 0;
+  int height_px = 0;
+  float width_mm = 0.0f;  // lateral extent of the image
+  float depth_mm = 0.0f;  // axial extent of the image
+  bool in_contact = true;  // false: the probe is off the skin, the panel shows "no contact"
+  bool frozen = false;
+};
+
+struct MeshView {
+  std::span<const float> node_positions_mm;  // x,y,z per node, deformed
+  std::span<const std::uint32_t> line_indices;  // pairs of node indices to draw as lines
+  std::span<const float> node_displacement_mm;  // |u| per node, for colouring (may be empty)
+};
+
+struct ProbeView {
+  // Column-major 4×4 rigid transform from the probe frame (origin at the face centre, +x along
+  // the array, +y elevational, +z along the beam) to patient space.
+  std::array<float, 16> probe_to_patient{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  float face_width_mm = 38.0f;
+  float face_thickness_mm = 10.0f;
+  float body_height_mm = 60.0f;   // drawn above the face, along -z of the probe frame
+  float image_depth_mm = 40.0f;   // the imaging plane drawn below the face
+  std::array<float, 3> collider_center_mm{0, 0, 0};
+  float collider_radius_mm = 0.0f;  // 0: do not draw the collider
+};
+
+struct FrameInput {
+  BscanView bscan;
+  MeshView mesh;
+  ProbeView probe;
+  std::array<float, 3> scene_min_mm{0, 0, 0};  // bounds of the tissue, for framing the 3D view
+  std::array<float, 3> scene_max_mm{1, 1, 1};
+  std::int64_t frame_index = 0;
+};
+
+}  // namespace ultrasim::render

@@ -1,0 +1,161 @@
+#include "bscan_panel.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bitmap_font.hpp"
+#include "bscan_texture.hpp"
+#include "text_buffer.hpp"
+#include "theme.hpp"
+
+namespace ultrasim::render::detail {
+namespace {
+
+constexpr Rgba8 kWarningSoft{236, 150, 142};  // reddish, never grey: tests tell it from B-scan
+
+float text_width(std::string_view text, float dot_px) {
+  return static_cast<float>(text_width_dots(text)) * dot_px;
+}
+
+// Ticks every 5 mm (short) and 10 mm (long) and labels in whole cm, thinned when the scale is
+// too small to keep them apart.
+void add_depth_scale(const ScreenLayout& layout, float depth_mm, ColorBatch& over) {
+  const auto s = static_cast<float>(layout.ui_scale);
+  const PixelRect& image = layout.bscan_image;
+  const float top = static_cast<float>(image.y_px);
+  const float height = static_cast<float>(image.height_px);
+  const float px_per_mm = height / depth_mm;
+  const float axis_x = static_cast<float>(image.x_px) - 3.0f * s;
+  over.fill_rect(axis_x, top, s, height, theme::kScale);
+
+  const bool minor_ticks = 5.0f * px_per_mm >= 4.0f * s;
+  int major_step_mm = 10;
+  while (static_cast<float>(major_step_mm) * px_per_mm < 4.0f * s) major_step_mm *= 2;
+  int label_step_cm = 1;
+  while (static_cast<float>(label_step_cm) * 10.0f * px_per_mm < 11.0f * s) {
+    label_step_cm = label_step_cm == 1 ? 2 : label_step_cm == 2 ? 5 : label_step_cm * 2;
+  }
+
+  const int last_mm = static_cast<int>(std::floor(depth_mm + 1e-3f));
+  for (int d = 0; d <= last_mm; d += 5) {
+    const bool major = d % major_step_mm == 0;
+    if (!major && (!minor_ticks || d % 10 == 0)) continue;
+    // Keep the tick at the very bottom inside the image's height.
+    const float y = std::min(top + static_cast<float>(d) * px_per_mm, top + height - s);
+    const float length = major ? 6.0f * s : 3.0f * s;
+    over.fill_rect(axis_x - length, y, length, s, theme::kScale);
+    if (major && d % (label_step_cm * 10) == 0) {
+      TextBuffer label;
+      label.append_int(d / 10);
+      const float label_x = axis_x - 6.0f * s - 3.0f * s - text_width(label.view(), s);
+      const float label_y = std::min(y - 3.0f * s, top + height - 7.0f * s);
+      over.text(label_x, label_y, s, label.view(), theme::kScale);
+    }
+  }
+  // Unit under the scale's labels.
+  over.text(axis_x - 9.0f * s - text_width("CM", s), top + height + 4.0f * s, s, "CM",
+            theme::kTextSecondary);
+}
+
+// Ticks every 10 mm along the bottom edge, from the centre line outwards.
+void add_lateral_ticks(const ScreenLayout& layout, float width_mm, ColorBatch& over) {
+  const auto s = static_cast<float>(layout.ui_scale);
+  const PixelRect& image = layout.bscan_image;
+  const float px_per_mm = static_cast<float>(image.width_px) / width_mm;
+  if (10.0f * px_per_mm < 4.0f * s) return;
+  const float centre_x = static_cast<float>(image.x_px) + 0.5f * static_cast<float>(image.width_px);
+  const float y = static_cast<float>(image.y_px + image.height_px) + s;
+  const int count = static_cast<int>(std::floor(0.5f * width_mm / 10.0f + 1e-3f));
+  for (int k = -count; k <= count; ++k) {
+    const float x = centre_x + static_cast<float>(k) * 10.0f * px_per_mm - 0.5f * s;
+    over.fill_rect(x, y, s, (k == 0 ? 4.0f : 2.0f) * s, theme::kScale);
+  }
+}
+
+// Dark image area, red frame and cross, and a message: unmistakably "nothing here", never a
+// stale or garbage image.
+void add_empty_state(const ScreenLayout& layout, BscanState state, ColorBatch& over) {
+  const auto s = static_cast<float>(layout.ui_scale);
+  const PixelRect& r = layout.bscan_image;
+  const float x = static_cast<float>(r.x_px);
+  const float y = static_cast<float>(r.y_px);
+  const float w = static_cast<float>(r.width_px);
+  const float h = static_cast<float>(r.height_px);
+  const bool no_contact = state == BscanState::kNoContact;
+  const Rgba8 colour = no_contact ? theme::kWarning : theme::kFrozen;
+  over.fill_rect(x, y, w, h, theme::kPanelBscan);
+  const Rgba8 cross = with_alpha(colour, 90);
+  over.stroke(x, y, x + w, y + h, s, cross);
+  over.stroke(x + w, y, x, y + h, s, cross);
+  over.outline_rect(x, y, w, h, 2.0f * s, colour);
+
+  const std::string_view message = no_contact ? "NO CONTACT" : "NO IMAGE";
+  const std::string_view hint = no_contact ? "PLACE THE PROBE ON THE SKIN" : "";
+  // Largest dot size (up to 2 units) at which the message fits with a margin.
+  const float fit = std::floor((w - 12.0f * s) / static_cast<float>(text_width_dots(message)));
+  const float dot = std::clamp(fit, 1.0f, 2.0f * s);
+  const float box_w = text_width(message, dot) + 12.0f * s;
+  const bool show_hint = !hint.empty() && text_width(hint, s) + 8.0f * s <= w;
+  const float box_h = 7.0f * dot + 12.0f * s + (show_hint ? 11.0f * s : 0.0f);
+  const float box_x = x + 0.5f * (w - box_w);
+  const float box_y = y + 0.5f * (h - box_h);
+  over.fill_rect(box_x, box_y, box_w, box_h, theme::kPanelBscan);
+  over.outline_rect(box_x, box_y, box_w, box_h, s, colour);
+  over.text(box_x + 6.0f * s, box_y + 6.0f * s, dot, message, colour);
+  if (show_hint) {
+    over.text(x + 0.5f * (w - text_width(hint, s)), box_y + 6.0f * s + 7.0f * dot + 5.0f * s, s,
+              hint, kWarningSoft);
+  }
+}
+
+}  // namespace
+
+BscanState bscan_state(const BscanView& bscan) {
+  if (!bscan.in_contact) return BscanState::kNoContact;
+  return is_drawable(bscan) ? BscanState::kImage : BscanState::kNoImage;
+}
+
+void add_bscan_background(const ScreenLayout& layout, ColorBatch& under) {
+  const PixelRect& p = layout.bscan_panel;
+  under.fill_rect(static_cast<float>(p.x_px), static_cast<float>(p.y_px),
+                  static_cast<float>(p.width_px), static_cast<float>(p.height_px),
+                  theme::kPanelBscan);
+}
+
+void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, BscanState state,
+                       float depth_mm, ColorBatch& over) {
+  const auto s = static_cast<float>(layout.ui_scale);
+  const PixelRect& p = layout.bscan_panel;
+  const float px = static_cast<float>(p.x_px);
+  const float py = static_cast<float>(p.y_px);
+  const float pw = static_cast<float>(p.width_px);
+  over.outline_rect(px, py, pw, static_cast<float>(p.height_px), 1.0f, theme::kPanelBorder);
+
+  // Title strip: mode on the left, depth on the right, frozen tag between.
+  const float text_y = py + 6.0f * s;
+  over.text(px + 6.0f * s, text_y, s, "B-MODE", theme::kTextPrimary);
+  TextBuffer depth_label;
+  depth_label.append("DEPTH ").append_fixed(depth_mm / 10.0f, 1).append(" CM");
+  const float depth_w = text_width(depth_label.view(), s);
+  over.text(px + pw - 6.0f * s - depth_w, text_y, s, depth_label.view(), theme::kTextSecondary);
+  if (frame.bscan.frozen && state == BscanState::kImage) {
+    const float tag_w = text_width("FROZEN", s) + 8.0f * s;
+    const float tag_x = px + 0.5f * (pw - tag_w);
+    over.fill_rect(tag_x, text_y - 3.0f * s, tag_w, 13.0f * s, theme::kFrozen);
+    over.text(tag_x + 4.0f * s, text_y, s, "FROZEN", theme::kPanelBscan);
+  }
+
+  // Orientation mark above the image's left edge: the side of the probe's marker (probe -x).
+  const PixelRect& image = layout.bscan_image;
+  over.fill_rect(static_cast<float>(image.x_px), static_cast<float>(image.y_px) - 4.0f * s,
+                 3.0f * s, 3.0f * s, theme::kAccent);
+
+  add_depth_scale(layout, depth_mm, over);
+  if (state == BscanState::kImage) {
+    add_lateral_ticks(layout, frame.bscan.width_mm, over);
+  } else {
+    add_empty_state(layout, state, over);
+  }
+}
+
+}  // namespace ultrasim::render::detail

@@ -1,0 +1,171 @@
+// Runs `ultrasim-kiosk --headless` on the default case once and checks its report and images:
+// the run is sane, the probe lifted shows no image, and under pressure the vein collapses while
+// the artery stays open — measured on the B-scan PNGs, as a trainee would see them.
+
+#include <gtest/gtest.h>
+#include <png.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct GreyImage {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> pixels;
+  int at(int x, int y) const { return pixels[static_cast<std::size_t>(y) * width + x]; }
+};
+
+GreyImage read_grey_png(const fs::path& path) {
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&image, path.c_str())) {
+    ADD_FAILURE() << path << ": " << image.message;
+    return {};
+  }
+  image.format = PNG_FORMAT_GRAY;
+  GreyImage out{static_cast<int>(image.width), static_cast<int>(image.height), {}};
+  out.pixels.resize(PNG_IMAGE_SIZE(image));
+  if (!png_image_finish_read(&image, nullptr, out.pixels.data(), 0, nullptr)) {
+    ADD_FAILURE() << path << ": " << image.message;
+  }
+  return out;
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The first number after "key": in the JSON text, from `from` on.
+double json_number(const std::string& json, const std::string& key, std::size_t from = 0) {
+  std::smatch m;
+  const std::string tail = json.substr(from);
+  if (!std::regex_search(tail, m, std::regex("\"" + key + "\": (-?[0-9.eE+-]+)"))) {
+    ADD_FAILURE() << "no \"" << key << "\" in the report";
+    return -1;
+  }
+  return std::stod(m[1]);
+}
+
+// Dark area (mm²) inside a window of the B-scan given in probe-plane mm (lateral x from the
+// image centre, depth z from the face), after a 9×9 box blur so speckle in the hypoechoic fat does
+// not count as lumen. The default probe images 38 mm × 40 mm.
+double dark_area_mm2(const GreyImage& img, double x0, double x1, double z0, double z1) {
+  const double width_mm = 38.0, depth_mm = 40.0;
+  const double px_w = width_mm / img.width, px_h = depth_mm / img.height;
+  int dark = 0;
+  for (int y = 0; y < img.height; ++y) {
+    const double z = (y + 0.5) * px_h;
+    if (z < z0 || z > z1) continue;
+    for (int x = 0; x < img.width; ++x) {
+      const double lateral = (x + 0.5) * px_w - width_mm / 2;
+      if (lateral < x0 || lateral > x1) continue;
+      int sum = 0, n = 0;
+      for (int dy = -4; dy <= 4; ++dy)
+        for (int dx = -4; dx <= 4; ++dx) {
+          const int yy = y + dy, xx = x + dx;
+          if (yy < 0 || xx < 0 || yy >= img.height || xx >= img.width) continue;
+          sum += img.at(xx, yy);
+          ++n;
+        }
+      dark += sum < 15 * n;
+    }
+  }
+  return dark * px_w * px_h;
+}
+
+class KioskHeadless : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    out_ = fs::temp_directory_path() / ("ultrasim-it-" + std::to_string(::getpid()));
+    fs::remove_all(out_);
+    const std::string command = std::string(ULTRASIM_KIOSK_EXE) + " --headless --case " +
+                                ULTRASIM_DEFAULT_CASE + " --out " + out_.string() + " > " +
+                                (out_.string() + ".log") + " 2>&1";
+    exit_code_ = std::system(command.c_str());
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(out_);
+    fs::remove(out_.string() + ".log");
+  }
+  static inline fs::path out_;
+  static inline int exit_code_ = -1;
+};
+
+TEST_F(KioskHeadless, RunsToCompletionAndWritesASaneReport) {
+  ASSERT_EQ(exit_code_, 0) << read_text(out_.string() + ".log");
+  const std::string json = read_text(out_ / "report.json");
+  ASSERT_FALSE(json.empty());
+  const double frames = json_number(json, "frames");
+  EXPECT_EQ(frames, 481);  // 8 s script at one frame per 16,667 µs budget, both ends included
+  EXPECT_EQ(json_number(json, "poses_rejected"), 0);
+  const double in_contact = json_number(json, "frames_in_contact");
+  EXPECT_GT(in_contact, 0.7 * frames);
+  EXPECT_LT(in_contact, frames);  // hovering at the start: no contact
+  EXPECT_EQ(json_number(json, "solver_resets"), 0);
+  const double force = json_number(json, "max_contact_force_n");
+  EXPECT_GT(force, 0.1);
+  EXPECT_LT(force, 100.0);
+  const std::size_t frame_time = json.find("\"frame_time\"");
+  const double p50 = json_number(json, "p50_us", frame_time);
+  const double p99 = json_number(json, "p99_us", frame_time);
+  const double max = json_number(json, "max_us", frame_time);
+  EXPECT_GT(p50, 0);
+  EXPECT_LE(p50, p99);
+  EXPECT_LE(p99, max);
+  for (const char* name : {"screen-rest.png", "screen-pressed.png", "bscan-rest.png",
+                           "bscan-pressed.png", "bscan-lifted.png", "bscan-released.png"}) {
+    EXPECT_TRUE(fs::exists(out_ / name)) << name;
+  }
+}
+
+TEST_F(KioskHeadless, ProbeOffTheSkinShowsNoImage) {
+  ASSERT_EQ(exit_code_, 0);
+  const GreyImage lifted = read_grey_png(out_ / "bscan-lifted.png");
+  ASSERT_EQ(lifted.width, 512);
+  for (auto p : lifted.pixels) ASSERT_EQ(p, 0) << "an image while the probe is in the air";
+  const GreyImage rest = read_grey_png(out_ / "bscan-rest.png");
+  int bright = 0;
+  for (auto p : rest.pixels) bright += p > 60;
+  EXPECT_GT(bright, 0.2 * rest.pixels.size()) << "the resting probe shows tissue";
+}
+
+TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {
+  ASSERT_EQ(exit_code_, 0);
+  const GreyImage rest = read_grey_png(out_ / "bscan-rest.png");
+  const GreyImage pressed = read_grey_png(out_ / "bscan-pressed.png");
+  const GreyImage released = read_grey_png(out_ / "bscan-released.png");
+  // Probe centred at x = -2 mm: the vein lies ~6 mm left of the image centre, the artery ~8 mm
+  // right; both between 8 and 28 mm deep, above the bone's shadow.
+  const double vein_rest = dark_area_mm2(rest, -16, 1, 3, 28);
+  const double vein_pressed = dark_area_mm2(pressed, -16, 1, 3, 28);
+  const double vein_released = dark_area_mm2(released, -16, 1, 3, 28);
+  const double artery_rest = dark_area_mm2(rest, 3, 14, 3, 28);
+  const double artery_pressed = dark_area_mm2(pressed, 3, 14, 3, 28);
+  RecordProperty("vein_rest_mm2", std::to_string(vein_rest));
+  RecordProperty("vein_pressed_mm2", std::to_string(vein_pressed));
+  RecordProperty("artery_rest_mm2", std::to_string(artery_rest));
+  RecordProperty("artery_pressed_mm2", std::to_string(artery_pressed));
+  std::cout << "vein lumen " << vein_rest << " -> " << vein_pressed << " -> " << vein_released
+            << " mm2; artery lumen " << artery_rest << " -> " << artery_pressed << " mm2\n";
+  EXPECT_GT(vein_rest, 40.0) << "the vein's lumen is visible at rest";
+  EXPECT_GT(artery_rest, 15.0) << "the artery's lumen is visible at rest";
+  // Measured on the default case: the vein loses ~42 % of its lumen at 8 mm (7.4 N), the artery
+  // ~2 %. Linear FEM treats the lumen as a soft solid, so the vein narrows but cannot buckle
+  // shut; full collapse is the deformation-engines issue's target.
+  EXPECT_LT(vein_pressed, 0.7 * vein_rest) << "the vein narrows under the probe";
+  EXPECT_GT(artery_pressed, 0.9 * artery_rest) << "the artery keeps its lumen";
+  EXPECT_GT(vein_released, 0.8 * vein_rest) << "the vein reopens when the pressure is released";
+}
+
+}  // namespace

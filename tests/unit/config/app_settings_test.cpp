@@ -1,0 +1,249 @@
+#include "ultrasim/config/app_settings.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "temp_dir.hpp"
+#include "ultrasim/config/config_error.hpp"
+
+namespace ultrasim::config {
+namespace {
+
+using testing::error_of;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using testing::TempDir;
+
+void expect_same(const AppSettings& a, const AppSettings& b) {
+  EXPECT_EQ(a.display.backend, b.display.backend);
+  EXPECT_EQ(a.display.width_px, b.display.width_px);
+  EXPECT_EQ(a.display.height_px, b.display.height_px);
+  EXPECT_EQ(a.bscan.width_px, b.bscan.width_px);
+  EXPECT_EQ(a.bscan.height_px, b.bscan.height_px);
+  EXPECT_EQ(a.bscan.gain_db, b.bscan.gain_db);
+  EXPECT_EQ(a.bscan.background_grey, b.bscan.background_grey);
+  EXPECT_EQ(a.fem.pcg_iterations_per_frame, b.fem.pcg_iterations_per_frame);
+  EXPECT_EQ(a.fem.relative_tolerance, b.fem.relative_tolerance);
+  EXPECT_EQ(a.collider.radius_mm, b.collider.radius_mm);
+  EXPECT_EQ(a.frame.budget_us, b.frame.budget_us);
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream stream(path, std::ios::binary);
+  std::ostringstream text;
+  text << stream.rdbuf();
+  return text.str();
+}
+
+const std::filesystem::path kDefaultFile =
+    std::filesystem::path(ULTRASIM_CONFIG_DEFAULT_DIR) / "app.toml";
+
+TEST(AppSettings, EmptyTextGivesStructDefaults) {
+  expect_same(parse_app_settings("", "empty.toml"), AppSettings{});
+}
+
+TEST(AppSettings, EmptyFileGivesStructDefaults) {
+  const TempDir dir;
+  expect_same(load_app_settings(dir.write("app.toml", "")), AppSettings{});
+}
+
+TEST(AppSettings, CheckedInDefaultFileMatchesGenerator) {
+  const std::string expected = default_app_toml();
+  if (read_file(kDefaultFile) != expected) {
+    // Leave the generated text beside the build so that updating the file is one copy.
+    const auto generated = std::filesystem::path(ULTRASIM_BINARY_DIR) / "generated_app.toml";
+    std::ofstream(generated, std::ios::binary) << expected;
+    FAIL() << kDefaultFile << " is out of date with config::default_app_toml(); the generated "
+           << "text is in " << generated << ": copy it over.";
+  }
+}
+
+TEST(AppSettings, CheckedInDefaultFileLoadsToStructDefaults) {
+  expect_same(load_app_settings(kDefaultFile), AppSettings{});
+}
+
+TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
+  AppSettings changed;
+  changed.display.width_px = 1920;
+  changed.display.height_px = 1080;
+  changed.bscan.width_px = 300;
+  changed.bscan.height_px = 200;
+  changed.bscan.gain_db = -12.25;
+  changed.bscan.background_grey = 17;
+  changed.fem.pcg_iterations_per_frame = 77;
+  changed.fem.relative_tolerance = 0.1 + 0.2;  // not exactly representable in short decimal
+  changed.collider.radius_mm = 12.5;
+  changed.frame.budget_us = 33'333;
+  expect_same(parse_app_settings(format_app_toml(changed), "formatted.toml"), changed);
+}
+
+TEST(AppSettings, EveryKeyIsReadFromItsTable) {
+  const AppSettings s = parse_app_settings(R"(
+[display]
+backend = "offscreen"
+width_px = 800
+height_px = 600
+[bscan]
+width_px = 256
+height_px = 128
+gain_db = 6
+background_grey = 5
+[fem]
+pcg_iterations_per_frame = 40
+relative_tolerance = 1e-6
+[collider]
+radius_mm = 500
+[frame]
+budget_us = 8333
+)",
+                                           "all.toml");
+  EXPECT_EQ(s.display.backend, render::DisplayBackend::kOffscreen);
+  EXPECT_EQ(s.display.width_px, 800);
+  EXPECT_EQ(s.display.height_px, 600);
+  EXPECT_EQ(s.bscan.width_px, 256);
+  EXPECT_EQ(s.bscan.height_px, 128);
+  EXPECT_EQ(s.bscan.gain_db, 6.0);  // a TOML integer is accepted where a number is expected
+  EXPECT_EQ(s.bscan.background_grey, 5);
+  EXPECT_EQ(s.fem.pcg_iterations_per_frame, 40);
+  EXPECT_EQ(s.fem.relative_tolerance, 1e-6);
+  EXPECT_EQ(s.collider.radius_mm, 500.0);  // closed upper bound
+  EXPECT_EQ(s.frame.budget_us, 8333);
+}
+
+TEST(AppSettings, MissingKeysKeepDefaults) {
+  const AppSettings s = parse_app_settings("[bscan]\ngain_db = 3.5\n", "partial.toml");
+  AppSettings expected;
+  expected.bscan.gain_db = 3.5;
+  expect_same(s, expected);
+}
+
+TEST(AppSettings, UnknownKeyNamesFileLineKeyAndSuggestion) {
+  const auto caught = error_of(
+      [] { (void)parse_app_settings("[bscan]\nwidth_px = 64\n\nwidht_px = 32\n", "app.toml"); });
+  EXPECT_EQ(caught.message,
+            "app.toml:4:1: bscan.widht_px: unknown key (did you mean \"width_px\"?); allowed: "
+            "width_px, height_px, gain_db, background_grey");
+}
+
+TEST(AppSettings, UnknownTableIsAnError) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[fem]\n[colider]\nradius_mm = 3\n", "app.toml"); });
+  EXPECT_EQ(caught.details.line, 2);
+  EXPECT_EQ(caught.details.key, "colider");
+  EXPECT_THAT(caught.message, HasSubstr("did you mean \"collider\"?"));
+  EXPECT_THAT(caught.message, HasSubstr("allowed: display, bscan, fem, collider, frame"));
+}
+
+TEST(AppSettings, FarOffUnknownKeyGetsNoSuggestion) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[frame]\nvsync = true\n", "app.toml"); });
+  EXPECT_EQ(caught.details.key, "frame.vsync");
+  EXPECT_THAT(caught.message, Not(HasSubstr("did you mean")));
+}
+
+TEST(AppSettings, WrongTypeSaysExpectedAndGot) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[display]\nwidth_px = \"wide\"\n", "app.toml"); });
+  EXPECT_EQ(caught.message,
+            "app.toml:2:12: display.width_px: wrong type: expected integer, got string; allowed: "
+            "integer in [64, 7680]");
+}
+
+TEST(AppSettings, FloatForIntegerIsWrongType) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[frame]\nbudget_us = 16667.0\n", "app.toml"); });
+  EXPECT_THAT(caught.message, HasSubstr("expected integer, got float"));
+}
+
+TEST(AppSettings, TableOfWrongTypeIsAnError) {
+  const auto caught = error_of([] { (void)parse_app_settings("fem = 3\n", "app.toml"); });
+  EXPECT_THAT(caught.message, HasSubstr("app.toml:1:7: fem: wrong type: expected table, got "
+                                        "integer; allowed: a table of: pcg_iterations_per_frame"));
+}
+
+TEST(AppSettings, OutOfRangeShowsAllowedRange) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[bscan]\ngain_db = 90\n", "app.toml"); });
+  EXPECT_EQ(caught.message,
+            "app.toml:2:11: bscan.gain_db: out of range: 90.0; allowed: number in [-40, 40]");
+  EXPECT_EQ(caught.details.allowed, "number in [-40, 40]");
+}
+
+TEST(AppSettings, OpenBoundsAreExcluded) {
+  EXPECT_THAT(error_of([] {
+                (void)parse_app_settings("[fem]\nrelative_tolerance = 0.0\n", "a.toml");
+              }).message,
+              HasSubstr("allowed: number in (0, 1)"));
+  EXPECT_THAT(
+      error_of([] { (void)parse_app_settings("[collider]\nradius_mm = 0.5\n", "a.toml"); }).message,
+      HasSubstr("allowed: number in (0.5, 500]"));
+  EXPECT_THAT(
+      error_of([] { (void)parse_app_settings("[collider]\nradius_mm = nan\n", "a.toml"); }).message,
+      HasSubstr("out of range: nan"));
+}
+
+TEST(AppSettings, IntegerRangesAreInclusive) {
+  const AppSettings s = parse_app_settings(
+      "[frame]\nbudget_us = 1000\n[display]\nwidth_px = 7680\nheight_px = 64\n", "a.toml");
+  EXPECT_EQ(s.frame.budget_us, 1000);
+  EXPECT_EQ(s.display.width_px, 7680);
+  EXPECT_EQ(s.display.height_px, 64);
+  EXPECT_THAT(
+      error_of([] { (void)parse_app_settings("[frame]\nbudget_us = 999\n", "a.toml"); }).message,
+      HasSubstr("frame.budget_us: out of range: 999; allowed: integer in [1000, 1000000]"));
+}
+
+TEST(AppSettings, BadEnumStringListsAllowedValues) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[display]\nbackend = \"vulkan\"\n", "app.toml"); });
+  EXPECT_EQ(caught.message,
+            "app.toml:2:11: display.backend: unknown value \"vulkan\"; allowed: one of "
+            "\"offscreen\"");
+}
+
+TEST(AppSettings, SyntaxErrorHasLineAndColumn) {
+  const auto caught =
+      error_of([] { (void)parse_app_settings("[bscan]\ngain_db = = 3\n", "app.toml"); });
+  EXPECT_EQ(caught.details.line, 2);
+  EXPECT_GT(caught.details.column, 0);
+  EXPECT_THAT(caught.message, HasSubstr("app.toml:2:"));
+  EXPECT_THAT(caught.message, HasSubstr("TOML syntax error"));
+}
+
+TEST(AppSettings, DuplicateKeyIsASyntaxError) {
+  const auto caught = error_of([] {
+    (void)parse_app_settings("[fem]\nrelative_tolerance = 0.1\nrelative_tolerance = 0.2\n",
+                             "app.toml");
+  });
+  EXPECT_EQ(caught.details.line, 3);
+}
+
+TEST(AppSettings, MissingFileIsAnError) {
+  const TempDir dir;
+  const auto missing = dir.path() / "nope.toml";
+  const auto caught = error_of([&] { (void)load_app_settings(missing); });
+  EXPECT_THAT(caught.message, HasSubstr(missing.string()));
+  EXPECT_THAT(caught.message, HasSubstr("file not found"));
+}
+
+TEST(AppSettings, FileErrorsNameThePath) {
+  const TempDir dir;
+  const auto file = dir.write("app.toml", "[bscan]\nbackground_grey = 256\n");
+  const auto caught = error_of([&] { (void)load_app_settings(file); });
+  EXPECT_EQ(caught.details.file, file.string());
+  EXPECT_EQ(caught.message.rfind(file.string() + ":2:19: bscan.background_grey: ", 0), 0u)
+      << caught.message;
+}
+
+TEST(AppSettings, MessagesAreOneLine) {
+  const auto caught = error_of(
+      [] { (void)parse_app_settings("[bscan]\ngain_db = \"\"\"\nloud\"\"\"\n", "app.toml"); });
+  EXPECT_EQ(caught.message.find('\n'), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ultrasim::config

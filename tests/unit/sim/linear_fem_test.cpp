@@ -1,0 +1,183 @@
+#include "ultrasim/sim/linear_fem.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <random>
+
+#include "ultrasim/geometry/tet_mesh.hpp"
+
+namespace ultrasim::sim {
+namespace {
+
+using geometry::GridSpec;
+using geometry::TetMesh;
+
+struct Block {
+  TetMesh mesh;
+  std::vector<Material> materials;
+  std::vector<std::uint8_t> fixed;
+};
+
+// A soft block 40 × 20 × 20 mm, skin at z = 0, fixed on its deepest face (z = 20).
+Block make_block(double e_kpa = 30.0, double nu = 0.45, Eigen::Vector3i nodes = {9, 5, 5}) {
+  Block b;
+  b.mesh = geometry::make_grid_tet_mesh(
+      GridSpec::spanning(Eigen::Vector3d(-20, -10, 0), Eigen::Vector3d(20, 10, 20), nodes));
+  b.materials.assign(b.mesh.tets.size(), Material{1, "tissue", e_kpa, nu});
+  b.fixed.assign(b.mesh.rest_positions_mm.size(), 0);
+  for (int n = 0; n < b.mesh.node_count(); ++n) b.fixed[n] = b.mesh.rest_positions_mm[n].z() == 20.0;
+  return b;
+}
+
+TEST(TetStiffness, IsSymmetricWithSixRigidBodyModes) {
+  const Eigen::Vector3d p0(0, 0, 0), p1(2, 0.1, 0), p2(0.3, 1.5, 0.2), p3(0.1, 0.4, 1.8);
+  const auto k = tet_stiffness(p0, p1, p2, p3, 50.0, 0.4);
+  EXPECT_LT((k - k.transpose()).norm(), 1e-12 * k.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(k);
+  int zero_modes = 0;
+  for (int i = 0; i < 12; ++i) {
+    EXPECT_GT(eig.eigenvalues()[i], -1e-9 * k.norm());
+    zero_modes += std::abs(eig.eigenvalues()[i]) < 1e-9 * k.norm();
+  }
+  EXPECT_EQ(zero_modes, 6);  // three translations, three infinitesimal rotations
+}
+
+// Patch test: with a linear displacement field prescribed on the boundary, linear tets reproduce
+// it exactly inside, and a uniaxial field's reaction on the top face is E·ε·A (Hooke's law).
+TEST(LinearFem, ReproducesUniaxialStrainExactlyAndHookesLaw) {
+  const double e_kpa = 30.0, nu = 0.45, strain = -0.02;
+  Block b = make_block(e_kpa, nu);
+  const auto field = [&](const Eigen::Vector3d& x) {
+    // Uniaxial stress along z about the fixed face z = 20: free lateral contraction.
+    return Eigen::Vector3d(-nu * strain * x.x(), -nu * strain * x.y(), strain * (x.z() - 20.0));
+  };
+  const auto& rest = b.mesh.rest_positions_mm;
+  // Anchor the one node where the field is zero; every other boundary node is prescribed.
+  int anchor = -1;
+  for (int n = 0; n < b.mesh.node_count(); ++n)
+    if (rest[n].isApprox(Eigen::Vector3d(0, 0, 20))) anchor = n;
+  ASSERT_GE(anchor, 0);
+  std::vector<std::uint8_t> fixed(b.fixed.size(), 0);
+  fixed[anchor] = 1;
+  LinearFem fem(b.mesh, b.materials, fixed, FemSettings{});
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& x = rest[n];
+    const bool boundary = std::abs(std::abs(x.x()) - 20) < 1e-9 || std::abs(std::abs(x.y()) - 10) < 1e-9 ||
+                          x.z() == 0.0 || x.z() == 20.0;
+    if (boundary && n != anchor) fem.prescribe_displacement(n, field(x));
+  }
+  const auto stats = fem.solve_to_tolerance(1e-13, 5000);
+  EXPECT_LT(stats.relative_residual, 1e-12);
+  double top_force_mn = 0.0;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    EXPECT_LT((fem.displacement_mm(n) - field(rest[n])).norm(), 1e-8)
+        << "node " << n;
+    if (rest[n].z() == 0.0) top_force_mn += fem.nodal_force_mn(n).z();
+  }
+  const double area_mm2 = 40.0 * 20.0;
+  // Compressive stress E·ε on the skin face: the load pushes it into the tissue (+z).
+  EXPECT_NEAR(top_force_mn, -e_kpa * strain * area_mm2, 1e-6 * e_kpa * area_mm2)
+      << "sum of z reactions on the skin face";
+}
+
+TEST(LinearFem, RejectsAMeshWithNoFixedNodes) {
+  Block b = make_block();
+  std::fill(b.fixed.begin(), b.fixed.end(), 0);
+  try {
+    LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{});
+    FAIL() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("singular"), std::string::npos) << e.what();
+  }
+}
+
+TEST(LinearFem, RejectsNonPhysicalMaterials) {
+  Block b = make_block();
+  b.materials[3].poisson_ratio = 0.5;
+  EXPECT_THROW(LinearFem(b.mesh, b.materials, b.fixed, FemSettings{}), std::invalid_argument);
+  b.materials[3] = Material{1, "nan", std::nan(""), 0.3};
+  EXPECT_THROW(LinearFem(b.mesh, b.materials, b.fixed, FemSettings{}), std::invalid_argument);
+}
+
+TEST(LinearFem, SphereColliderPushesNodesOutAndForceGrowsWithDepth) {
+  Block b = make_block();
+  FemSettings settings;
+  settings.pcg_iterations_per_frame = 2000;  // converge every frame: this test is about contact
+  settings.relative_tolerance = 1e-10;
+  LinearFem fem(b.mesh, b.materials, b.fixed, settings);
+  double last_force = 0.0;
+  for (double depth : {1.0, 2.0, 3.0, 4.0}) {
+    const auto collider = SphereCollider::behind_face({0, 0, depth}, {0, 0, 1}, 15.0);
+    FemStepStats stats;
+    for (int frame = 0; frame < 3; ++frame) stats = fem.step(collider);
+    EXPECT_GT(stats.contact_nodes, 0);
+    EXPECT_GT(stats.contact_force_n, last_force);
+    last_force = stats.contact_force_n;
+    for (int n = 0; n < fem.node_count(); ++n) {
+      const double dist = (fem.deformed_positions_mm()[n] - collider.center_mm).norm();
+      EXPECT_GT(dist, collider.radius_mm - 0.05) << "node " << n << " left inside the probe";
+    }
+  }
+  // The node under the probe centre went down by the indentation depth.
+  int top_centre = -1;
+  for (int n = 0; n < fem.node_count(); ++n)
+    if (b.mesh.rest_positions_mm[n].isApprox(Eigen::Vector3d(0, 0, 0))) top_centre = n;
+  ASSERT_GE(top_centre, 0);
+  EXPECT_NEAR(fem.displacement_mm(top_centre).z(), 4.0, 1e-9);
+}
+
+TEST(LinearFem, WarmStartedFramesConvergeToTheExactAnswer) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{20, 1e-12});
+  const auto collider = SphereCollider::behind_face({0, 0, 3}, {0, 0, 1}, 15.0);
+  FemStepStats first = fem.step(collider);
+  FemStepStats last = first;
+  for (int frame = 0; frame < 200; ++frame) last = fem.step(collider);
+  EXPECT_EQ(first.pcg_iterations, 20);
+  EXPECT_LT(last.relative_residual, first.relative_residual * 1e-3);
+}
+
+TEST(LinearFem, TissueReturnsToRestWhenTheProbeLifts) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{50, 1e-12});
+  const auto collider = SphereCollider::behind_face({0, 0, 4}, {0, 0, 1}, 15.0);
+  for (int frame = 0; frame < 30; ++frame) fem.step(collider);
+  for (int frame = 0; frame < 200; ++frame) fem.step_without_contact();
+  double max_u = 0.0;
+  for (int n = 0; n < fem.node_count(); ++n) max_u = std::max(max_u, fem.displacement_mm(n).norm());
+  EXPECT_LT(max_u, 1e-6);
+}
+
+// A probe lifting slowly must stay in contact while it is still below the skin, even when the
+// per-frame iteration budget leaves the tissue lagging: contact ends when holding on would need a
+// pull, not when the probe moves a hair away.
+TEST(LinearFem, TissueFollowsASlowlyLiftingProbe) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{20, 1e-12});
+  for (int frame = 0; frame <= 60; ++frame)
+    fem.step(SphereCollider::behind_face({0, 0, 4.0 * frame / 60}, {0, 0, 1}, 15.0));
+  double last_force = 1e9;
+  for (int frame = 60; frame >= 6; --frame) {  // lift from 4 mm to 0.4 mm below the skin
+    const auto stats = fem.step(SphereCollider::behind_face({0, 0, 4.0 * frame / 60}, {0, 0, 1}, 15.0));
+    EXPECT_GT(stats.contact_nodes, 0) << "contact lost at depth " << 4.0 * frame / 60;
+    EXPECT_LE(stats.contact_force_n, last_force * 1.05);
+    last_force = stats.contact_force_n;
+  }
+  // Lifted clear of the skin: nothing holds the tissue any more.
+  const auto lifted = fem.step(SphereCollider::behind_face({0, 0, -2.0}, {0, 0, 1}, 15.0));
+  EXPECT_EQ(lifted.contact_nodes, 0);
+}
+
+TEST(LinearFem, StepDoesNotProduceNonFiniteValues) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{});
+  for (int frame = 0; frame < 10; ++frame) {
+    fem.step(SphereCollider::behind_face({0, 0, 0.5 * frame}, {0, 0, 1}, 15.0));
+    for (const auto& p : fem.deformed_positions_mm()) ASSERT_TRUE(p.allFinite());
+  }
+}
+
+}  // namespace
+}  // namespace ultrasim::sim
