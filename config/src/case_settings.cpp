@@ -169,7 +169,11 @@ CaseSettings parse_case_settings(std::string_view toml_text, std::string_view so
 CaseSettings load_case_settings(const std::filesystem::path& case_dir_or_toml_path) {
   std::error_code error;  // unreadable paths are reported by read_text_file below
   std::filesystem::path toml_path = case_dir_or_toml_path;
-  if (std::filesystem::is_directory(toml_path, error)) toml_path /= "case.toml";
+  // A path that is not a .toml file names a case folder, whether or not it exists, so a missing
+  // folder is reported as its missing case.toml.
+  if (std::filesystem::is_directory(toml_path, error) || toml_path.extension() != ".toml") {
+    toml_path /= "case.toml";
+  }
   std::filesystem::path absolute = std::filesystem::absolute(toml_path, error);
   if (error) absolute = toml_path;
   const std::filesystem::path case_dir = absolute.lexically_normal().parent_path();

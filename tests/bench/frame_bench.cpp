@@ -29,7 +29,8 @@ struct Scene {
     fixed.assign(mesh.rest_positions_mm.size(), 0);
     for (int n = 0; n < mesh.node_count(); ++n) fixed[n] = mesh.rest_positions_mm[n].z() == 30.0;
     auto voxels = volume.voxels();
-    for (std::size_t i = 0; i < voxels.size(); ++i) voxels[i] = static_cast<std::uint8_t>(i * 2654435761u >> 24);
+    for (std::size_t i = 0; i < voxels.size(); ++i)
+      voxels[i] = static_cast<std::uint8_t>(i * 2654435761u >> 24);
   }
 };
 
@@ -44,7 +45,8 @@ void BM_FemStep20Iterations(benchmark::State& state) {
   double depth = 0.0;
   for (auto _ : state) {
     depth = std::fmod(depth + 0.05, 6.0);
-    benchmark::DoNotOptimize(fem.step(sim::SphereCollider::behind_face({0, 0, depth}, {0, 0, 1}, 30)));
+    benchmark::DoNotOptimize(
+        fem.step(sim::SphereCollider::behind_face({0, 0, depth}, {0, 0, 1}, 30)));
   }
   state.counters["dofs"] = 3.0 * s.mesh.node_count();
 }
@@ -70,8 +72,12 @@ void slice(benchmark::State& state, bool deformed) {
     benchmark::DoNotOptimize(image.data());
   }
 }
-void BM_BscanUndeformed512(benchmark::State& state) { slice(state, false); }
-void BM_BscanDeformedPerPixelReference512(benchmark::State& state) { slice(state, true); }
+void BM_BscanUndeformed512(benchmark::State& state) {
+  slice(state, false);
+}
+void BM_BscanDeformedPerPixelReference512(benchmark::State& state) {
+  slice(state, true);
+}
 BENCHMARK(BM_BscanUndeformed512)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BscanDeformedPerPixelReference512)->Unit(benchmark::kMillisecond);
 

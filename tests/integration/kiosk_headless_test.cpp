@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 #include <png.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -166,6 +168,45 @@ TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {
   EXPECT_LT(vein_pressed, 0.7 * vein_rest) << "the vein narrows under the probe";
   EXPECT_GT(artery_pressed, 0.9 * artery_rest) << "the artery keeps its lumen";
   EXPECT_GT(vein_released, 0.8 * vein_rest) << "the vein reopens when the pressure is released";
+}
+
+// Runs the kiosk with extra arguments and environment; returns its exit status and output.
+std::pair<int, std::string> run_kiosk(const std::string& env, const std::string& args) {
+  const fs::path log =
+      fs::temp_directory_path() / ("ultrasim-it-bad-" + std::to_string(::getpid()));
+  const std::string command =
+      env + " " + ULTRASIM_KIOSK_EXE + " " + args + " > " + log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  std::string output = read_text(log);
+  fs::remove(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+TEST(KioskBadInput, AMissingCaseGivesOneLineNamingItsFile) {
+  const auto [code, output] =
+      run_kiosk("", "--headless --case /nonexistent/case --out /tmp/unused");
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(output.find("/nonexistent/case/case.toml"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists("/tmp/unused/report.json"));
+}
+
+TEST(KioskBadInput, NoEglDriverGivesAClearErrorNotACrash) {
+  const fs::path out =
+      fs::temp_directory_path() / ("ultrasim-it-noegl-" + std::to_string(::getpid()));
+  const auto [code, output] = run_kiosk(
+      "LIBGL_DRIVERS_PATH=/nonexistent",
+      std::string("--headless --case ") + ULTRASIM_DEFAULT_CASE + " --out " + out.string());
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(output.find("ultrasim-kiosk: eglInitialize failed"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists(out / "report.json"));
+  fs::remove_all(out);
+}
+
+TEST(KioskBadInput, AnUnknownScriptListsTheAvailableOnes) {
+  const auto [code, output] = run_kiosk("", std::string("--headless --script zigzag --case ") +
+                                                ULTRASIM_DEFAULT_CASE + " --out /tmp/unused");
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(output.find("sweep-press"), std::string::npos) << output;
 }
 
 }  // namespace

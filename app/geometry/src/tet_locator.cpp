@@ -64,7 +64,8 @@ void TetLocator::rebuild(std::span<const Eigen::Vector3d> positions_mm) {
   const std::size_t bin_count = static_cast<std::size_t>(bins_.prod());
   bin_start_.assign(bin_count + 1, 0);
   const auto bin_coord = [&](double v, int axis) {
-    return std::clamp(static_cast<int>((v - bins_min_[axis]) / bin_size_[axis]), 0, bins_[axis] - 1);
+    return std::clamp(static_cast<int>((v - bins_min_[axis]) / bin_size_[axis]), 0,
+                      bins_[axis] - 1);
   };
   for (std::size_t t = 0; t < tet_count; ++t) {
     if (!usable_[t]) continue;

@@ -89,7 +89,8 @@ TetMesh make_grid_tet_mesh(const GridSpec& grid) {
 
 std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh) {
   // Faces of a positively oriented tet (a, b, c, d), each wound to face outwards.
-  constexpr std::array<std::array<int, 3>, 4> kFaces = {{{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}}};
+  constexpr std::array<std::array<int, 3>, 4> kFaces = {
+      {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}}};
   std::map<std::array<std::int32_t, 3>, std::pair<int, std::array<std::int32_t, 3>>> faces;
   for (const Tet& tet : mesh.tets) {
     for (const auto& f : kFaces) {

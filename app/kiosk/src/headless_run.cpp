@@ -29,15 +29,14 @@ std::vector<drivers::sim_probe::Keyframe> make_script(const std::string& name,
 }  // namespace
 
 std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock) {
-  const config::AppSettings settings = options.app_config
-                                           ? config::load_app_settings(*options.app_config)
-                                           : config::AppSettings{};
+  const config::AppSettings settings =
+      options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
   const TissueCase tissue = load_tissue_case(options.case_dir);
   drivers::sim_probe::ScriptedProbe probe(make_script(options.script, tissue.settings.scan));
 
-  std::filesystem::create_directories(options.out_dir);
   render::OffscreenDisplay display(settings.display);
   render::SceneRenderer renderer(display);
+  std::filesystem::create_directories(options.out_dir);  // only once everything could start
   Session session(tissue, settings, clock);
 
   RunReport report;

@@ -54,8 +54,9 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   out << "\n  },\n  \"snapshots\": [";
   for (std::size_t i = 0; i < r.snapshots.size(); ++i) {
     const Snapshot& s = r.snapshots[i];
-    out << (i ? ",\n" : "\n") << "    {\"marker\": " << quoted(s.marker) << ", \"frame\": " << s.frame
-        << ", \"bscan\": " << quoted(s.bscan_png) << ", \"screen\": " << quoted(s.screen_png)
+    out << (i ? ",\n" : "\n") << "    {\"marker\": " << quoted(s.marker)
+        << ", \"frame\": " << s.frame << ", \"bscan\": " << quoted(s.bscan_png)
+        << ", \"screen\": " << quoted(s.screen_png)
         << ", \"contact_force_n\": " << s.contact_force_n << "}";
   }
   out << "\n  ]\n}\n";

@@ -28,8 +28,8 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   const hal::TimestampUs t0 = clock_.now_us();
   if (pose_) {
     const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
-    outcome.fem = fem_.step(sim::SphereCollider::behind_face(pose_->position_mm, beam,
-                                                             settings_.collider.radius_mm));
+    outcome.fem = fem_.step(
+        sim::SphereCollider::behind_face(pose_->position_mm, beam, settings_.collider.radius_mm));
   } else {
     outcome.fem = fem_.step_without_contact();
   }

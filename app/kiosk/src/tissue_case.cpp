@@ -9,18 +9,26 @@ namespace ultrasim::kiosk {
 
 namespace {
 
-Eigen::Vector3d to_vector(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
+Eigen::Vector3d to_vector(const std::array<double, 3>& a) {
+  return {a[0], a[1], a[2]};
+}
 
 bool on_face(const Eigen::Vector3d& p, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
              config::BoxFace face) {
   const double tolerance = 1e-9 * (hi - lo).norm();
   switch (face) {
-    case config::BoxFace::kXMin: return std::abs(p.x() - lo.x()) <= tolerance;
-    case config::BoxFace::kXMax: return std::abs(p.x() - hi.x()) <= tolerance;
-    case config::BoxFace::kYMin: return std::abs(p.y() - lo.y()) <= tolerance;
-    case config::BoxFace::kYMax: return std::abs(p.y() - hi.y()) <= tolerance;
-    case config::BoxFace::kZMin: return std::abs(p.z() - lo.z()) <= tolerance;
-    case config::BoxFace::kZMax: return std::abs(p.z() - hi.z()) <= tolerance;
+    case config::BoxFace::kXMin:
+      return std::abs(p.x() - lo.x()) <= tolerance;
+    case config::BoxFace::kXMax:
+      return std::abs(p.x() - hi.x()) <= tolerance;
+    case config::BoxFace::kYMin:
+      return std::abs(p.y() - lo.y()) <= tolerance;
+    case config::BoxFace::kYMax:
+      return std::abs(p.y() - hi.y()) <= tolerance;
+    case config::BoxFace::kZMin:
+      return std::abs(p.z() - lo.z()) <= tolerance;
+    case config::BoxFace::kZMax:
+      return std::abs(p.z() - hi.z()) <= tolerance;
   }
   return false;
 }
@@ -33,8 +41,7 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
   c.volume = imaging::read_volume_u8(c.settings.volume_path);
   c.labels = imaging::read_volume_u8(c.settings.labels_path);
   const std::string toml = (case_dir / "case.toml").string();
-  if (c.labels.size() != c.volume.size() ||
-      !c.labels.origin_mm().isApprox(c.volume.origin_mm()) ||
+  if (c.labels.size() != c.volume.size() || !c.labels.origin_mm().isApprox(c.volume.origin_mm()) ||
       !c.labels.spacing_mm().isApprox(c.volume.spacing_mm())) {
     throw CaseError(c.settings.labels_path.string() +
                     ": label volume must share the echo volume's grid (size, spacing, origin)");

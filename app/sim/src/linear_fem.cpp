@@ -97,9 +97,9 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
     if (geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]) <= 0) {
       throw std::invalid_argument("tet " + std::to_string(t) + " has no positive volume");
     }
-    const auto ke = tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
-                                  tet_materials[t].youngs_modulus_kpa,
-                                  tet_materials[t].poisson_ratio);
+    const auto ke =
+        tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
+                      tet_materials[t].youngs_modulus_kpa, tet_materials[t].poisson_ratio);
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b)
         for (int i = 0; i < 3; ++i)

@@ -13,7 +13,8 @@ ScriptedProbe::ScriptedProbe(std::vector<Keyframe> keyframes) : keyframes_(std::
     const std::string where = "scripted probe: keyframe " + std::to_string(i);
     if (!k.position_mm.allFinite() || !k.orientation.coeffs().allFinite() ||
         std::abs(k.orientation.norm() - 1.0) > 1e-6) {
-      throw std::invalid_argument(where + ": position and orientation must be finite, unit quaternion");
+      throw std::invalid_argument(where +
+                                  ": position and orientation must be finite, unit quaternion");
     }
     if (i > 0 && k.time_us <= keyframes_[i - 1].time_us) {
       throw std::invalid_argument(where + ": time_us must increase");
@@ -25,9 +26,9 @@ std::optional<hal::PoseSample> ScriptedProbe::latest(hal::TimestampUs now_us) {
   hal::PoseSample sample;
   sample.timestamp_us = now_us;
   sample.sequence = sequence_++;
-  const auto after = std::upper_bound(
-      keyframes_.begin(), keyframes_.end(), now_us,
-      [](hal::TimestampUs t, const Keyframe& k) { return t < k.time_us; });
+  const auto after =
+      std::upper_bound(keyframes_.begin(), keyframes_.end(), now_us,
+                       [](hal::TimestampUs t, const Keyframe& k) { return t < k.time_us; });
   if (after == keyframes_.begin() || after == keyframes_.end()) {
     const Keyframe& k = after == keyframes_.begin() ? keyframes_.front() : keyframes_.back();
     sample.position_mm = k.position_mm;
@@ -36,7 +37,8 @@ std::optional<hal::PoseSample> ScriptedProbe::latest(hal::TimestampUs now_us) {
   }
   const Keyframe& a = *(after - 1);
   const Keyframe& b = *after;
-  const double s = static_cast<double>(now_us - a.time_us) / static_cast<double>(b.time_us - a.time_us);
+  const double s =
+      static_cast<double>(now_us - a.time_us) / static_cast<double>(b.time_us - a.time_us);
   sample.position_mm = (1 - s) * a.position_mm + s * b.position_mm;
   sample.orientation = a.orientation.slerp(s, b.orientation);
   return sample;

@@ -7,8 +7,8 @@ namespace {
 
 TEST(ScriptedProbe, InterpolatesBetweenKeyframesAndHoldsOutside) {
   const Eigen::Quaterniond turned(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
-  ScriptedProbe probe({{0, {0, 0, 0}, Eigen::Quaterniond::Identity(), ""},
-                       {1'000'000, {10, 0, 4}, turned, "end"}});
+  ScriptedProbe probe(
+      {{0, {0, 0, 0}, Eigen::Quaterniond::Identity(), ""}, {1'000'000, {10, 0, 4}, turned, "end"}});
   auto mid = probe.latest(500'000);
   ASSERT_TRUE(mid.has_value());
   EXPECT_TRUE(mid->position_mm.isApprox(Eigen::Vector3d(5, 0, 2)));

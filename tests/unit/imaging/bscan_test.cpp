@@ -15,7 +15,9 @@ namespace {
 // A volume whose echo is an affine function of position with whole-number values on the voxel
 // grid (1 mm spacing, integer origin), so the stored bytes are exact, trilinear sampling is exact
 // and every pixel's expected grey level is known to within the final rounding (±0.5).
-double affine_echo(const Eigen::Vector3d& p) { return 60.0 + 2.0 * p.x() + p.y() + 3.0 * p.z(); }
+double affine_echo(const Eigen::Vector3d& p) {
+  return 60.0 + 2.0 * p.x() + p.y() + 3.0 * p.z();
+}
 constexpr double kRounding = 0.5 + 1e-6;
 
 Volume<std::uint8_t> affine_volume() {
@@ -27,7 +29,9 @@ Volume<std::uint8_t> affine_volume() {
             std::lround(affine_echo(v.index_to_world({double(i), double(j), double(k)}))));
   return v;
 }
-double expected_echo(const Eigen::Vector3d& p) { return affine_echo(p); }
+double expected_echo(const Eigen::Vector3d& p) {
+  return affine_echo(p);
+}
 
 ProbeGeometry small_linear() {
   ProbeGeometry probe;

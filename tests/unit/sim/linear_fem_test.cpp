@@ -27,7 +27,8 @@ Block make_block(double e_kpa = 30.0, double nu = 0.45, Eigen::Vector3i nodes = 
       GridSpec::spanning(Eigen::Vector3d(-20, -10, 0), Eigen::Vector3d(20, 10, 20), nodes));
   b.materials.assign(b.mesh.tets.size(), Material{1, "tissue", e_kpa, nu});
   b.fixed.assign(b.mesh.rest_positions_mm.size(), 0);
-  for (int n = 0; n < b.mesh.node_count(); ++n) b.fixed[n] = b.mesh.rest_positions_mm[n].z() == 20.0;
+  for (int n = 0; n < b.mesh.node_count(); ++n)
+    b.fixed[n] = b.mesh.rest_positions_mm[n].z() == 20.0;
   return b;
 }
 
@@ -64,16 +65,15 @@ TEST(LinearFem, ReproducesUniaxialStrainExactlyAndHookesLaw) {
   LinearFem fem(b.mesh, b.materials, fixed, FemSettings{});
   for (int n = 0; n < b.mesh.node_count(); ++n) {
     const Eigen::Vector3d& x = rest[n];
-    const bool boundary = std::abs(std::abs(x.x()) - 20) < 1e-9 || std::abs(std::abs(x.y()) - 10) < 1e-9 ||
-                          x.z() == 0.0 || x.z() == 20.0;
+    const bool boundary = std::abs(std::abs(x.x()) - 20) < 1e-9 ||
+                          std::abs(std::abs(x.y()) - 10) < 1e-9 || x.z() == 0.0 || x.z() == 20.0;
     if (boundary && n != anchor) fem.prescribe_displacement(n, field(x));
   }
   const auto stats = fem.solve_to_tolerance(1e-13, 5000);
   EXPECT_LT(stats.relative_residual, 1e-12);
   double top_force_mn = 0.0;
   for (int n = 0; n < b.mesh.node_count(); ++n) {
-    EXPECT_LT((fem.displacement_mm(n) - field(rest[n])).norm(), 1e-8)
-        << "node " << n;
+    EXPECT_LT((fem.displacement_mm(n) - field(rest[n])).norm(), 1e-8) << "node " << n;
     if (rest[n].z() == 0.0) top_force_mn += fem.nodal_force_mn(n).z();
   }
   const double area_mm2 = 40.0 * 20.0;
@@ -160,7 +160,8 @@ TEST(LinearFem, TissueFollowsASlowlyLiftingProbe) {
     fem.step(SphereCollider::behind_face({0, 0, 4.0 * frame / 60}, {0, 0, 1}, 15.0));
   double last_force = 1e9;
   for (int frame = 60; frame >= 6; --frame) {  // lift from 4 mm to 0.4 mm below the skin
-    const auto stats = fem.step(SphereCollider::behind_face({0, 0, 4.0 * frame / 60}, {0, 0, 1}, 15.0));
+    const auto stats =
+        fem.step(SphereCollider::behind_face({0, 0, 4.0 * frame / 60}, {0, 0, 1}, 15.0));
     EXPECT_GT(stats.contact_nodes, 0) << "contact lost at depth " << 4.0 * frame / 60;
     EXPECT_LE(stats.contact_force_n, last_force * 1.05);
     last_force = stats.contact_force_n;

@@ -14,14 +14,14 @@ struct BscanView {
   std::span<const std::uint8_t> pixels;  // row-major grey levels, row 0 at the probe face
   int width_px = 0;
   int height_px = 0;
-  float width_mm = 0.0f;  // lateral extent of the image
-  float depth_mm = 0.0f;  // axial extent of the image
+  float width_mm = 0.0f;   // lateral extent of the image
+  float depth_mm = 0.0f;   // axial extent of the image
   bool in_contact = true;  // false: the probe is off the skin, the panel shows "no contact"
   bool frozen = false;
 };
 
 struct MeshView {
-  std::span<const float> node_positions_mm;  // x,y,z per node, deformed
+  std::span<const float> node_positions_mm;     // x,y,z per node, deformed
   std::span<const std::uint32_t> line_indices;  // pairs of node indices to draw as lines
   std::span<const float> node_displacement_mm;  // |u| per node, for colouring (may be empty)
 };
@@ -32,8 +32,8 @@ struct ProbeView {
   std::array<float, 16> probe_to_patient{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   float face_width_mm = 38.0f;
   float face_thickness_mm = 10.0f;
-  float body_height_mm = 60.0f;   // drawn above the face, along -z of the probe frame
-  float image_depth_mm = 40.0f;   // the imaging plane drawn below the face
+  float body_height_mm = 60.0f;  // drawn above the face, along -z of the probe frame
+  float image_depth_mm = 40.0f;  // the imaging plane drawn below the face
   std::array<float, 3> collider_center_mm{0, 0, 0};
   float collider_radius_mm = 0.0f;  // 0: do not draw the collider
 };

@@ -1,8 +1,8 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <cstdint>
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <vector>
@@ -41,14 +41,14 @@ class TetLocator {
   bool bin_of(const Eigen::Vector3d& p, Eigen::Vector3i& bin) const;
 
   std::vector<Tet> tets_;
-  std::vector<Eigen::Vector3d> origin_;    // per tet: node 0 position
-  std::vector<Eigen::Matrix3d> inverse_;   // per tet: inverse of [p1-p0, p2-p0, p3-p0]
-  std::vector<std::uint8_t> usable_;       // per tet: positive volume
+  std::vector<Eigen::Vector3d> origin_;   // per tet: node 0 position
+  std::vector<Eigen::Matrix3d> inverse_;  // per tet: inverse of [p1-p0, p2-p0, p3-p0]
+  std::vector<std::uint8_t> usable_;      // per tet: positive volume
   Eigen::Vector3d bins_min_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d bin_size_ = Eigen::Vector3d::Ones();
   Eigen::Vector3i bins_ = Eigen::Vector3i::Ones();
-  std::vector<std::int32_t> bin_start_;    // CSR offsets, bin count + 1
-  std::vector<std::int32_t> bin_tets_;     // tet indices, grouped by bin
+  std::vector<std::int32_t> bin_start_;  // CSR offsets, bin count + 1
+  std::vector<std::int32_t> bin_tets_;   // tet indices, grouped by bin
   std::vector<std::array<int, 6>> tet_bin_range_;
   std::vector<std::int32_t> scratch_fill_;
   int degenerate_tets_ = 0;

@@ -18,7 +18,7 @@ struct ProbeGeometry {
 struct BscanSettings {
   int width_px = 512;
   int height_px = 512;
-  double gain_db = 0.0;  // added to every pixel's echo level before display
+  double gain_db = 0.0;     // added to every pixel's echo level before display
   int background_grey = 0;  // grey level shown outside the volume or the mesh
 };
 

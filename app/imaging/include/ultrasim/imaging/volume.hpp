@@ -65,9 +65,8 @@ class Volume {
   float sample_trilinear(const Eigen::Vector3d& world_mm, float outside) const {
     const Eigen::Vector3d p = world_to_index(world_mm);
     constexpr double kEdge = 1e-9;  // admit points on the last voxel centre despite rounding
-    if (!(p.x() >= -kEdge && p.y() >= -kEdge && p.z() >= -kEdge &&
-          p.x() <= size_.x() - 1 + kEdge && p.y() <= size_.y() - 1 + kEdge &&
-          p.z() <= size_.z() - 1 + kEdge)) {
+    if (!(p.x() >= -kEdge && p.y() >= -kEdge && p.z() >= -kEdge && p.x() <= size_.x() - 1 + kEdge &&
+          p.y() <= size_.y() - 1 + kEdge && p.z() <= size_.z() - 1 + kEdge)) {
       return outside;
     }
     const auto split = [](double v, int n, int& i0, double& f) {

@@ -11,8 +11,8 @@ namespace ultrasim::kiosk {
 struct HeadlessRunOptions {
   std::filesystem::path case_dir;
   std::optional<std::filesystem::path> app_config;  // app.toml; defaults when absent
-  std::filesystem::path out_dir;                     // created if missing
-  std::string script = "sweep-press";                // the scripted probe's motion
+  std::filesystem::path out_dir;                    // created if missing
+  std::string script = "sweep-press";               // the scripted probe's motion
 };
 
 // Runs the kiosk without a screen: a scripted probe plays through the case on a fixed virtual

@@ -21,9 +21,9 @@ class CaseError : public std::runtime_error {
 // A case loaded and meshed, ready to simulate: immutable after loading, shared by the session.
 struct TissueCase {
   config::CaseSettings settings;
-  imaging::Volume<std::uint8_t> volume;  // B-mode echo
-  imaging::Volume<std::uint8_t> labels;  // tissue labels (docs/case-format.md)
-  geometry::TetMesh mesh;                // rest configuration over the case's region
+  imaging::Volume<std::uint8_t> volume;      // B-mode echo
+  imaging::Volume<std::uint8_t> labels;      // tissue labels (docs/case-format.md)
+  geometry::TetMesh mesh;                    // rest configuration over the case's region
   std::vector<sim::Material> tet_materials;  // one per tet, from the label at its centroid
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface

@@ -17,7 +17,7 @@ struct FemStepStats {
   int pcg_iterations = 0;
   double relative_residual = 0.0;  // free-DOF residual over max(|rhs|, frame's first residual)
   int contact_nodes = 0;
-  double contact_force_n = 0.0;   // magnitude of the total force on the contact nodes, newtons
+  double contact_force_n = 0.0;  // magnitude of the total force on the contact nodes, newtons
   bool reset_after_divergence = false;
 };
 
@@ -54,8 +54,9 @@ class LinearFem {
   // Displacement of node n, mm.
   Eigen::Vector3d displacement_mm(int node) const { return u_.segment<3>(3 * node); }
 
-  // Runs CG on the current constraints (fixed, prescribed, and last step's contacts) until the relative residual is below `tolerance` (or
-  // max_iterations). For tests and accuracy reports: the converged answer of this frame's problem.
+  // Runs CG on the current constraints (fixed, prescribed, and last step's contacts) until the
+  // relative residual is below `tolerance` (or max_iterations). For tests and accuracy reports: the
+  // converged answer of this frame's problem.
   FemStepStats solve_to_tolerance(double tolerance, int max_iterations);
 
   const Eigen::SparseMatrix<double, Eigen::RowMajor>& stiffness() const { return stiffness_; }
