@@ -7,7 +7,7 @@
 #include <sstream>
 #include <string>
 
-#include "temp_dir.hpp"
+#include "config_test_support.hpp"
 #include "ultrasim/config/config_error.hpp"
 
 namespace ultrasim::config {
@@ -16,7 +16,7 @@ namespace {
 using testing::error_of;
 using ::testing::HasSubstr;
 using ::testing::Not;
-using testing::TempDir;
+using testing::ScratchDir;
 
 void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.display.backend, b.display.backend);
@@ -47,7 +47,7 @@ TEST(AppSettings, EmptyTextGivesStructDefaults) {
 }
 
 TEST(AppSettings, EmptyFileGivesStructDefaults) {
-  const TempDir dir;
+  const ScratchDir dir;
   expect_same(load_app_settings(dir.write("app.toml", "")), AppSettings{});
 }
 
@@ -223,7 +223,7 @@ TEST(AppSettings, DuplicateKeyIsASyntaxError) {
 }
 
 TEST(AppSettings, MissingFileIsAnError) {
-  const TempDir dir;
+  const ScratchDir dir;
   const auto missing = dir.path() / "nope.toml";
   const auto caught = error_of([&] { (void)load_app_settings(missing); });
   EXPECT_THAT(caught.message, HasSubstr(missing.string()));
@@ -231,7 +231,7 @@ TEST(AppSettings, MissingFileIsAnError) {
 }
 
 TEST(AppSettings, FileErrorsNameThePath) {
-  const TempDir dir;
+  const ScratchDir dir;
   const auto file = dir.write("app.toml", "[bscan]\nbackground_grey = 256\n");
   const auto caught = error_of([&] { (void)load_app_settings(file); });
   EXPECT_EQ(caught.details.file, file.string());

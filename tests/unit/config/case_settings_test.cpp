@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "temp_dir.hpp"
+#include "config_test_support.hpp"
 #include "ultrasim/config/config_error.hpp"
 
 namespace ultrasim::config {
@@ -14,7 +14,7 @@ namespace {
 using ::testing::ElementsAre;
 using testing::error_of;
 using ::testing::HasSubstr;
-using testing::TempDir;
+using testing::ScratchDir;
 
 // The example of docs/case-format.md, verbatim.
 constexpr std::string_view kExampleCase = R"(
@@ -51,7 +51,7 @@ press_depth_mm = 8.0                # how far the probe presses into the skin at
 )";
 
 // A case folder with stand-in volume files (the loader checks only that they exist).
-class CaseDir : public TempDir {
+class CaseDir : public ScratchDir {
  public:
   CaseDir() {
     write("volume.mha", "stand-in");
@@ -174,7 +174,7 @@ TEST(CaseSettings, EveryFieldRoundTripsThroughFormat) {
 }
 
 TEST(CaseSettings, MissingVolumeFileNamesThePath) {
-  const TempDir dir;  // no volume files in it
+  const ScratchDir dir;  // no volume files in it
   dir.write("case.toml", kExampleCase);
   const auto caught = error_of([&] { (void)load_case_settings(dir.path()); });
   const std::string expected_path = (dir.path() / "volume.mha").lexically_normal().string();
@@ -183,7 +183,7 @@ TEST(CaseSettings, MissingVolumeFileNamesThePath) {
 }
 
 TEST(CaseSettings, MissingCaseTomlIsAnError) {
-  const TempDir dir;
+  const ScratchDir dir;
   const auto caught = error_of([&] { (void)load_case_settings(dir.path()); });
   EXPECT_THAT(caught.message, HasSubstr((dir.path() / "case.toml").string()));
 }

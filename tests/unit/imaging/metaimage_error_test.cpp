@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "scratch_dir.hpp"
+#include "byte_files.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
 
 namespace ultrasim::imaging {

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <numeric>
 
-#include "scratch_dir.hpp"
+#include "byte_files.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
 
 namespace ultrasim::imaging {

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <random>
 
-#include "scratch_dir.hpp"
+#include "byte_files.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
 
 namespace ultrasim::imaging {

@@ -7,7 +7,7 @@
 #include <numeric>
 #include <span>
 
-#include "scratch_dir.hpp"
+#include "byte_files.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
 
 namespace ultrasim::imaging {

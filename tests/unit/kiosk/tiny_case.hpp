@@ -3,12 +3,10 @@
 // A small case written to a temporary folder: a 20 mm cube of muscle with a soft "vein" ball,
 // fixed on its deepest face. Tests change case.toml to provoke errors.
 
-#include <unistd.h>
-
 #include <filesystem>
-#include <fstream>
 #include <string>
 
+#include "scratch_dir.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
 
 namespace ultrasim::kiosk::testing {
@@ -55,9 +53,6 @@ press_depth_mm = 3.0
 class TinyCase {
  public:
   explicit TinyCase(const std::string& toml = tiny_case_toml()) {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("ultrasim-tiny-" + std::to_string(::getpid()) + "-" + std::to_string(counter()++));
-    std::filesystem::create_directories(dir_);
     imaging::Volume<std::uint8_t> echo({21, 21, 21}, {1, 1, 1}, {-10, -10, 0});
     imaging::Volume<std::uint8_t> labels({21, 21, 21}, {1, 1, 1}, {-10, -10, 0});
     for (int k = 0; k < 21; ++k)
@@ -69,19 +64,14 @@ class TinyCase {
           echo.at(i, j, k) =
               vein ? 2 : static_cast<std::uint8_t>(60 + (i * 7 + j * 13 + k * 5) % 50);
         }
-    imaging::write_volume(dir_ / "volume.mha", echo);
-    imaging::write_volume(dir_ / "labels.mha", labels);
-    std::ofstream(dir_ / "case.toml") << toml;
+    imaging::write_volume(scratch_ / "volume.mha", echo);
+    imaging::write_volume(scratch_ / "labels.mha", labels);
+    scratch_.write("case.toml", toml);
   }
-  ~TinyCase() { std::filesystem::remove_all(dir_); }
-  const std::filesystem::path& dir() const { return dir_; }
+  const std::filesystem::path& dir() const { return scratch_.path(); }
 
  private:
-  static int& counter() {
-    static int n = 0;
-    return n;
-  }
-  std::filesystem::path dir_;
+  ::ultrasim::testing::ScratchDir scratch_;
 };
 
 }  // namespace ultrasim::kiosk::testing
