@@ -7,14 +7,20 @@
 #include <exception>
 #include <filesystem>
 
+#include "ultrasim/imaging/metaimage.hpp"
 #include "ultrasim/tools/make_case/default_case.hpp"
+#include "ultrasim/tools/make_case/volume_case.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App app{"Generate the default ultrasim case (synthetic upper arm)"};
+  CLI::App app{
+      "Generate an ultrasim case: the default synthetic upper arm, or (--from-volume) a case "
+      "around a real reconstructed 3D ultrasound volume"};
   std::filesystem::path out_dir;
   double spacing_mm = 0.25;
   double speckle_exponent = ultrasim::tools::DefaultCaseSettings{}.speckle_exponent;
   bool quiet = false;
+  std::filesystem::path from_volume;
+  std::string name = "real-volume";
   app.add_option("--out", out_dir, "output folder (created if missing)")->required();
   app.add_option("--spacing-mm", spacing_mm, "isotropic voxel size in mm")
       ->check(CLI::Range(0.05, 5.0));
@@ -22,9 +28,25 @@ int main(int argc, char** argv) {
                  "speckle compression: 1 = raw Rayleigh envelope, <1 = log-compressed look")
       ->check(CLI::Range(0.1, 1.0));
   app.add_flag("--quiet", quiet, "print nothing on success");
+  app.add_option("--from-volume", from_volume,
+                 "make a one-tissue case around this real volume (.mha) instead")
+      ->check(CLI::ExistingFile);
+  app.add_option("--name", name, "case name for --from-volume");
   CLI11_PARSE(app, argc, argv);
 
   try {
+    if (!from_volume.empty()) {
+      const auto volume = ultrasim::imaging::read_volume_u8(from_volume);
+      ultrasim::tools::VolumeCaseSettings settings;
+      settings.name = name;
+      settings.description = "made by ultrasim-make-case from " + from_volume.filename().string() +
+                             "; one homogeneous tissue (not segmented)";
+      const auto made = ultrasim::tools::make_volume_case(volume, settings);
+      ultrasim::tools::write_volume_case(out_dir, volume, made);
+      if (!quiet)
+        std::printf("ultrasim-make-case: %s: case '%s'\n", out_dir.string().c_str(), name.c_str());
+      return 0;
+    }
     const auto start = std::chrono::steady_clock::now();
     ultrasim::tools::DefaultCaseSettings settings;
     settings.spacing_mm = spacing_mm;
