@@ -2,6 +2,7 @@
 
 #include <cstdint>
 
+#include "array_codecs.hpp"
 #include "document_schema.hpp"
 #include "scalar_codecs.hpp"
 #include "toml_document.hpp"
@@ -29,6 +30,12 @@ TableSchema<imaging::BscanSettings> bscan_schema() {
               "B-scan image height in pixels (spans the imaging depth)."));
   t.add(field("gain_db", &S::gain_db, RealIn::closed(-40.0, 40.0),
               "Gain in dB added to every pixel's echo level before display."));
+  t.add(field("tgc_db", &S::tgc_db,
+              FixedArray<RealIn, imaging::kTgcSliders>{RealIn::closed(-30.0, 30.0)},
+              "Time-gain compensation in dB: 8 sliders from the probe face to the imaging "
+              "depth, interpolated linearly."));
+  t.add(field("dynamic_range_db", &S::dynamic_range_db, RealIn::closed(10.0, 100.0),
+              "Echo range in dB shown from black to white; the case data spans 60 dB."));
   t.add(field("background_grey", &S::background_grey, IntegerIn<int>{0, 255},
               "Grey level shown outside the volume or the mesh."));
   return t;

@@ -41,6 +41,13 @@ std::optional<Eigen::Vector2d> BscanGrid::pixel_to_plane_mm(int col, int row) co
   return Eigen::Vector2d(x, z);
 }
 
+std::optional<double> BscanGrid::pixel_depth_mm(int col, int row) const {
+  const auto plane = pixel_to_plane_mm(col, row);
+  if (!plane) return std::nullopt;
+  if (probe_.kind == ProbeKind::kLinear) return std::max(plane->y(), 0.0);
+  return std::hypot(plane->x(), plane->y() + probe_.radius_mm) - probe_.radius_mm;
+}
+
 std::uint8_t apply_gain(float echo, double gain_db) {
   const double v = std::round(echo * std::pow(10.0, gain_db / 20.0));
   return static_cast<std::uint8_t>(std::clamp(v, 0.0, 255.0));

@@ -1,8 +1,38 @@
 #include "ultrasim/kiosk/session.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 namespace ultrasim::kiosk {
+
+namespace {
+
+BscanControls controls_from(const config::AppSettings& settings, const imaging::ProbeGeometry& p) {
+  BscanControls c;
+  c.gain_db = settings.bscan.gain_db;
+  c.tgc_db = settings.bscan.tgc_db;
+  c.dynamic_range_db = settings.bscan.dynamic_range_db;
+  c.depth_mm = p.depth_mm;
+  return c;
+}
+
+imaging::BscanSettings display_settings(imaging::BscanSettings s, const BscanControls& c) {
+  s.gain_db = c.gain_db;
+  s.tgc_db = c.tgc_db;
+  s.dynamic_range_db = c.dynamic_range_db;
+  return s;
+}
+
+void check_range(const char* name, double value, double lo, double hi) {
+  if (!(value >= lo && value <= hi)) {
+    throw std::invalid_argument(std::string("B-scan control ") + name + " = " +
+                                std::to_string(value) + " is outside [" + std::to_string(lo) +
+                                ", " + std::to_string(hi) + "]");
+  }
+}
+
+}  // namespace
 
 Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
                  const hal::Clock& clock)
@@ -11,11 +41,27 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       clock_(clock),
       fem_(tissue.mesh, tissue.tet_materials, tissue.fixed_nodes, settings.fem),
       locator_(tissue.mesh),
-      grid_(tissue.settings.probe, settings.bscan.width_px, settings.bscan.height_px),
+      controls_(controls_from(settings, tissue.settings.probe)),
+      probe_(tissue.settings.probe),
+      grid_(probe_, settings.bscan.width_px, settings.bscan.height_px),
+      display_mapping_(grid_, display_settings(settings.bscan, controls_)),
       bscan_(static_cast<std::size_t>(settings.bscan.width_px) * settings.bscan.height_px,
              static_cast<std::uint8_t>(settings.bscan.background_grey)),
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
       node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f) {}
+
+void Session::set_controls(const BscanControls& c) {
+  check_range("gain_db", c.gain_db, -40.0, 40.0);
+  for (double t : c.tgc_db) check_range("tgc_db", t, -30.0, 30.0);
+  check_range("dynamic_range_db", c.dynamic_range_db, 10.0, 100.0);
+  check_range("depth_mm", c.depth_mm, 10.0, 300.0);
+  if (c.depth_mm != probe_.depth_mm) {
+    probe_.depth_mm = c.depth_mm;
+    grid_ = imaging::BscanGrid(probe_, grid_.width_px(), grid_.height_px());
+  }
+  controls_ = c;
+  display_mapping_ = imaging::DisplayMapping(grid_, display_settings(settings_.bscan, controls_));
+}
 
 FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   FrameOutcome outcome;
@@ -40,13 +86,21 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
 
   const auto deformed = fem_.deformed_positions_mm();
   locator_.rebuild(deformed);
-  if (in_contact_) {
+  if (controls_.frozen) {
+    // The image holds still, as a frozen scanner's does; the tissue keeps following the probe.
+  } else if (in_contact_) {
     imaging::ProbePose probe;
     probe.face_center_mm = pose_->position_mm;
     probe.axes = pose_->orientation.toRotationMatrix();
+    // Slice the echo as recorded; the display controls are applied after, in dB.
+    imaging::BscanSettings echo_only = settings_.bscan;
+    echo_only.gain_db = 0.0;
     imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe, grid_,
-                                      settings_.bscan, bscan_);
+                                      echo_only, bscan_);
+    display_mapping_.apply(bscan_);
+    image_shows_tissue_ = true;
   } else {
+    image_shows_tissue_ = false;
     std::fill(bscan_.begin(), bscan_.end(),
               static_cast<std::uint8_t>(settings_.bscan.background_grey));
   }
@@ -70,15 +124,15 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.bscan.height_px = grid_.height_px();
   frame.bscan.width_mm = static_cast<float>(extent.width_mm());
   frame.bscan.depth_mm = static_cast<float>(extent.depth_mm());
-  frame.bscan.in_contact = in_contact_;
+  frame.bscan.in_contact = image_shows_tissue_;
+  frame.bscan.frozen = controls_.frozen;
 
   frame.mesh.node_positions_mm = node_positions_;
   frame.mesh.line_indices = tissue_.surface_lines;
   frame.mesh.node_displacement_mm = node_displacement_;
 
-  const auto& probe = tissue_.settings.probe;
   frame.probe.face_width_mm = static_cast<float>(extent.width_mm());
-  frame.probe.image_depth_mm = static_cast<float>(probe.depth_mm);
+  frame.probe.image_depth_mm = static_cast<float>(probe_.depth_mm);
   if (pose_) {
     Eigen::Matrix4f m = Eigen::Matrix4f::Identity();
     m.topLeftCorner<3, 3>() = pose_->orientation.toRotationMatrix().cast<float>();

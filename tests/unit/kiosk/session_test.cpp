@@ -89,5 +89,74 @@ TEST_F(SessionTest, LiftingTheProbeEndsContactAndBlanksTheImage) {
   for (auto p : session.bscan()) EXPECT_EQ(p, settings_.bscan.background_grey);
 }
 
+double mean_grey(std::span<const std::uint8_t> image) {
+  double sum = 0;
+  for (auto p : image) sum += p;
+  return sum / static_cast<double>(image.size());
+}
+
+TEST_F(SessionTest, GainAndDynamicRangeChangeTheImageOnTheDecibelScale) {
+  Session session(tissue_, settings_, clock_);
+  for (int f = 0; f < 5; ++f) session.update(pose_at(1.0));
+  const double neutral = mean_grey(session.bscan());
+  BscanControls brighter = session.controls();
+  brighter.gain_db = 6.0;
+  session.set_controls(brighter);
+  session.update(pose_at(1.0));
+  EXPECT_NEAR(mean_grey(session.bscan()) - neutral, 25.5, 3.0);  // 6 dB of 60 dB over 255 grey
+  BscanControls contrast = session.controls();
+  contrast.gain_db = 0.0;
+  contrast.dynamic_range_db = 30.0;
+  session.set_controls(contrast);
+  session.update(pose_at(1.0));
+  EXPECT_LT(mean_grey(session.bscan()), neutral) << "the lower 30 dB go black";
+}
+
+TEST_F(SessionTest, DepthControlRebuildsTheImageGrid) {
+  Session session(tissue_, settings_, clock_);
+  BscanControls deeper = session.controls();
+  EXPECT_EQ(deeper.depth_mm, 16.0);  // the tiny case's probe
+  deeper.depth_mm = 12.0;
+  session.set_controls(deeper);
+  session.update(pose_at(1.0));
+  const render::FrameInput frame = session.frame_input(0);
+  EXPECT_FLOAT_EQ(frame.bscan.depth_mm, 12.0f);
+  EXPECT_FLOAT_EQ(frame.probe.image_depth_mm, 12.0f);
+  EXPECT_EQ(frame.bscan.height_px, 64);
+}
+
+TEST_F(SessionTest, FreezeHoldsTheImageWhileTheTissueFollowsTheProbe) {
+  Session session(tissue_, settings_, clock_);
+  for (int f = 0; f < 5; ++f) session.update(pose_at(0.5));
+  BscanControls frozen = session.controls();
+  frozen.frozen = true;
+  session.set_controls(frozen);
+  const std::vector<std::uint8_t> held(session.bscan().begin(), session.bscan().end());
+  FrameOutcome outcome;
+  for (int f = 0; f < 5; ++f) outcome = session.update(pose_at(3.0));
+  EXPECT_GT(outcome.fem.contact_force_n, 0.0) << "the simulation runs on";
+  EXPECT_EQ(std::vector<std::uint8_t>(session.bscan().begin(), session.bscan().end()), held);
+  for (int f = 0; f < 3; ++f) session.update(pose_at(-5.0));  // lifted, still frozen
+  const render::FrameInput frame = session.frame_input(0);
+  EXPECT_TRUE(frame.bscan.frozen);
+  EXPECT_TRUE(frame.bscan.in_contact) << "a frozen image of tissue stays shown";
+}
+
+TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
+  Session session(tissue_, settings_, clock_);
+  const BscanControls before = session.controls();
+  BscanControls bad = before;
+  bad.gain_db = 90.0;
+  EXPECT_THROW(session.set_controls(bad), std::invalid_argument);
+  bad = before;
+  bad.depth_mm = std::nan("");
+  EXPECT_THROW(session.set_controls(bad), std::invalid_argument);
+  bad = before;
+  bad.tgc_db[3] = -31.0;
+  EXPECT_THROW(session.set_controls(bad), std::invalid_argument);
+  EXPECT_EQ(session.controls().gain_db, before.gain_db);
+  EXPECT_EQ(session.controls().depth_mm, before.depth_mm);
+}
+
 }  // namespace
 }  // namespace ultrasim::kiosk

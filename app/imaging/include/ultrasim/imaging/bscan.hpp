@@ -39,6 +39,10 @@ class BscanGrid {
  public:
   BscanGrid(const ProbeGeometry& probe, int width_px, int height_px);
   std::optional<Eigen::Vector2d> pixel_to_plane_mm(int col, int row) const;
+  // Depth of a pixel below the transducer face along its beam (z for a linear probe, distance
+  // from the face arc for a convex one), or nothing outside a convex sector.
+  std::optional<double> pixel_depth_mm(int col, int row) const;
+  double imaging_depth_mm() const { return probe_.depth_mm; }
   int width_px() const { return width_px_; }
   int height_px() const { return height_px_; }
   const ImageExtent& extent() const { return extent_; }

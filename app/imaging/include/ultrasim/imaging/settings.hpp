@@ -1,5 +1,7 @@
 #pragma once
 
+#include <array>
+
 namespace ultrasim::imaging {
 
 enum class ProbeKind { kLinear, kConvex };
@@ -14,11 +16,21 @@ struct ProbeGeometry {
   double fan_angle_deg = 60.0;  // convex: total opening angle of the sector
 };
 
+// Grey levels in case volumes are log-compressed echo amplitudes spanning this many dB from
+// 0 to 255, as a scanner's B-mode output does; display controls act on that dB scale.
+inline constexpr double kRecordedDynamicRangeDb = 60.0;
+
+// Time-gain compensation: sliders at equally spaced depths from the face (first) to the
+// imaging depth (last), interpolated linearly between them, as on a scanner's panel.
+inline constexpr int kTgcSliders = 8;
+
 // The B-scan image grid and display mapping.
 struct BscanSettings {
   int width_px = 512;
   int height_px = 512;
-  double gain_db = 0.0;     // added to every pixel's echo level before display
+  double gain_db = 0.0;                      // overall gain added to every echo level (dB)
+  std::array<double, kTgcSliders> tgc_db{};  // depth-dependent gain (dB), face to imaging depth
+  double dynamic_range_db = kRecordedDynamicRangeDb;  // echo range shown from black to white
   int background_grey = 0;  // grey level shown outside the volume or the mesh
 };
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -10,6 +11,7 @@
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/hal/pose_sample.hpp"
 #include "ultrasim/imaging/bscan.hpp"
+#include "ultrasim/imaging/display_mapping.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
@@ -25,6 +27,15 @@ struct FrameOutcome {
   std::int64_t slice_us = 0;  // point-location rebuild + B-scan synthesis
 };
 
+// The scanner's controls a trainee can change while scanning.
+struct BscanControls {
+  double gain_db = 0.0;                                        // [-40, 40]
+  std::array<double, imaging::kTgcSliders> tgc_db{};           // each [-30, 30]
+  double dynamic_range_db = imaging::kRecordedDynamicRangeDb;  // [10, 100]
+  double depth_mm = 40.0;                                      // [10, 300]
+  bool frozen = false;  // image held; the tissue still follows the probe
+};
+
 // One trainee's scanning session on one case: probe pose in, deformed tissue and B-scan out.
 // The frame thread calls update() then frame_input(); nothing else touches it.
 class Session {
@@ -36,6 +47,12 @@ class Session {
   // unhealthy or non-finite sample is rejected and the last good pose is used (before any good
   // pose the probe counts as lifted). Does not allocate.
   FrameOutcome update(const std::optional<hal::PoseSample>& sample);
+
+  // The controls in force, and changing them. Values out of their ranges are refused with
+  // std::invalid_argument naming the control (nothing changes). Allocates when the depth
+  // changes (the image grid is rebuilt); call between frames, from the frame thread.
+  const BscanControls& controls() const { return controls_; }
+  void set_controls(const BscanControls& controls);
 
   // Views of this frame's results for the renderer, valid until the next update().
   render::FrameInput frame_input(std::int64_t frame_index) const;
@@ -52,9 +69,13 @@ class Session {
   const hal::Clock& clock_;
   sim::LinearFem fem_;
   geometry::TetLocator locator_;
+  BscanControls controls_;
+  imaging::ProbeGeometry probe_;  // the case's probe at the current depth
   imaging::BscanGrid grid_;
+  imaging::DisplayMapping display_mapping_;
   std::optional<hal::PoseSample> pose_;  // last good pose
   bool in_contact_ = false;
+  bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;
   std::vector<float> node_positions_;
   std::vector<float> node_displacement_;
