@@ -38,6 +38,11 @@ TableSchema<imaging::BscanSettings> bscan_schema() {
               "Echo range in dB shown from black to white; the case data spans 60 dB."));
   t.add(field("background_grey", &S::background_grey, IntegerIn<int>{0, 255},
               "Grey level shown outside the volume or the mesh."));
+  t.add(field("scan_lines", &S::scan_lines, IntegerIn<int>{0, 1024},
+              "Scan lines to acquire, then scan-convert to the display (a scanner's way); 0 "
+              "slices the display grid directly."));
+  t.add(field("samples_per_line", &S::samples_per_line, IntegerIn<int>{16, 4096},
+              "Samples along each scan line, when scan_lines > 0."));
   return t;
 }
 

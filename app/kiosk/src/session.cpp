@@ -1,6 +1,8 @@
 #include "ultrasim/kiosk/session.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -44,23 +46,41 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       controls_(controls_from(settings, tissue.settings.probe)),
       probe_(tissue.settings.probe),
       grid_(probe_, settings.bscan.width_px, settings.bscan.height_px),
+      acquisition_grid_(grid_),
       display_mapping_(grid_, display_settings(settings.bscan, controls_)),
       bscan_(static_cast<std::size_t>(settings.bscan.width_px) * settings.bscan.height_px,
              static_cast<std::uint8_t>(settings.bscan.background_grey)),
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
-      node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f) {}
+      node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f) {
+  rebuild_image_pipeline();
+}
+
+void Session::rebuild_image_pipeline() {
+  grid_ = imaging::BscanGrid(probe_, settings_.bscan.width_px, settings_.bscan.height_px);
+  if (settings_.bscan.scan_lines > 0) {
+    acquisition_grid_ = imaging::BscanGrid::scan_lines(probe_, settings_.bscan.scan_lines,
+                                                       settings_.bscan.samples_per_line);
+    scan_converter_.emplace(acquisition_grid_, grid_,
+                            static_cast<std::uint8_t>(settings_.bscan.background_grey));
+  } else {
+    acquisition_grid_ = grid_;
+    scan_converter_.reset();
+  }
+  acquired_.assign(
+      static_cast<std::size_t>(acquisition_grid_.width_px()) * acquisition_grid_.height_px(),
+      static_cast<std::uint8_t>(settings_.bscan.background_grey));
+  display_mapping_ =
+      imaging::DisplayMapping(acquisition_grid_, display_settings(settings_.bscan, controls_));
+}
 
 void Session::set_controls(const BscanControls& c) {
   check_range("gain_db", c.gain_db, -40.0, 40.0);
   for (double t : c.tgc_db) check_range("tgc_db", t, -30.0, 30.0);
   check_range("dynamic_range_db", c.dynamic_range_db, 10.0, 100.0);
   check_range("depth_mm", c.depth_mm, 10.0, 300.0);
-  if (c.depth_mm != probe_.depth_mm) {
-    probe_.depth_mm = c.depth_mm;
-    grid_ = imaging::BscanGrid(probe_, grid_.width_px(), grid_.height_px());
-  }
   controls_ = c;
-  display_mapping_ = imaging::DisplayMapping(grid_, display_settings(settings_.bscan, controls_));
+  probe_.depth_mm = c.depth_mm;
+  rebuild_image_pipeline();
 }
 
 FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
@@ -95,9 +115,16 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
     // Slice the echo as recorded; the display controls are applied after, in dB.
     imaging::BscanSettings echo_only = settings_.bscan;
     echo_only.gain_db = 0.0;
-    imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe, grid_,
-                                      echo_only, bscan_);
-    display_mapping_.apply(bscan_);
+    if (scan_converter_) {
+      imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe,
+                                        acquisition_grid_, echo_only, acquired_);
+      display_mapping_.apply(acquired_);
+      scan_converter_->apply(acquired_, bscan_);
+    } else {
+      imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe, grid_,
+                                        echo_only, bscan_);
+      display_mapping_.apply(bscan_);
+    }
     image_shows_tissue_ = true;
   } else {
     image_shows_tissue_ = false;
@@ -131,7 +158,12 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.mesh.line_indices = tissue_.surface_lines;
   frame.mesh.node_displacement_mm = node_displacement_;
 
-  frame.probe.face_width_mm = static_cast<float>(extent.width_mm());
+  // A convex face is the chord of its arc, not the sector's width at depth.
+  const double face_width_mm =
+      probe_.kind == imaging::ProbeKind::kLinear
+          ? probe_.width_mm
+          : 2.0 * probe_.radius_mm * std::sin(probe_.fan_angle_deg * std::numbers::pi / 360.0);
+  frame.probe.face_width_mm = static_cast<float>(face_width_mm);
   frame.probe.image_depth_mm = static_cast<float>(probe_.depth_mm);
   if (pose_) {
     Eigen::Matrix4f m = Eigen::Matrix4f::Identity();

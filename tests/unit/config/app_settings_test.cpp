@@ -27,6 +27,8 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.bscan.gain_db, b.bscan.gain_db);
   EXPECT_EQ(a.bscan.tgc_db, b.bscan.tgc_db);
   EXPECT_EQ(a.bscan.dynamic_range_db, b.bscan.dynamic_range_db);
+  EXPECT_EQ(a.bscan.scan_lines, b.bscan.scan_lines);
+  EXPECT_EQ(a.bscan.samples_per_line, b.bscan.samples_per_line);
   EXPECT_EQ(a.bscan.background_grey, b.bscan.background_grey);
   EXPECT_EQ(a.fem.pcg_iterations_per_frame, b.fem.pcg_iterations_per_frame);
   EXPECT_EQ(a.fem.relative_tolerance, b.fem.relative_tolerance);
@@ -77,6 +79,8 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.bscan.gain_db = -12.25;
   changed.bscan.tgc_db = {0.0, 1.5, 3.0, 4.5, 6.0, 7.5, 9.0, 10.5};
   changed.bscan.dynamic_range_db = 45.0;
+  changed.bscan.scan_lines = 128;
+  changed.bscan.samples_per_line = 300;
   changed.bscan.background_grey = 17;
   changed.fem.pcg_iterations_per_frame = 77;
   changed.fem.relative_tolerance = 0.1 + 0.2;  // not exactly representable in short decimal
@@ -130,7 +134,8 @@ TEST(AppSettings, UnknownKeyNamesFileLineKeyAndSuggestion) {
       [] { (void)parse_app_settings("[bscan]\nwidth_px = 64\n\nwidht_px = 32\n", "app.toml"); });
   EXPECT_EQ(caught.message,
             "app.toml:4:1: bscan.widht_px: unknown key (did you mean \"width_px\"?); allowed: "
-            "width_px, height_px, gain_db, tgc_db, dynamic_range_db, background_grey");
+            "width_px, height_px, gain_db, tgc_db, dynamic_range_db, background_grey, scan_lines, "
+            "samples_per_line");
 }
 
 TEST(AppSettings, UnknownTableIsAnError) {

@@ -142,6 +142,21 @@ TEST_F(SessionTest, FreezeHoldsTheImageWhileTheTissueFollowsTheProbe) {
   EXPECT_TRUE(frame.bscan.in_contact) << "a frozen image of tissue stays shown";
 }
 
+TEST_F(SessionTest, ScanLineAcquisitionShowsTheSameTissueAsTheDisplayGrid) {
+  Session direct(tissue_, settings_, clock_);
+  config::AppSettings scanned_settings = settings_;
+  scanned_settings.bscan.scan_lines = 48;
+  scanned_settings.bscan.samples_per_line = 96;
+  Session scanned(tissue_, scanned_settings, clock_);
+  for (int f = 0; f < 5; ++f) {
+    direct.update(pose_at(1.0));
+    scanned.update(pose_at(1.0));
+  }
+  ASSERT_TRUE(scanned.in_contact());
+  EXPECT_EQ(scanned.bscan().size(), direct.bscan().size());
+  EXPECT_NEAR(mean_grey(scanned.bscan()), mean_grey(direct.bscan()), 3.0);
+}
+
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
   Session session(tissue_, settings_, clock_);
   const BscanControls before = session.controls();

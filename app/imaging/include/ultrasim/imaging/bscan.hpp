@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
@@ -33,11 +34,20 @@ struct ImageExtent {
 };
 ImageExtent image_extent(const ProbeGeometry& probe);
 
-// Maps image pixels to points in the probe plane. Pixel (col, row) samples its centre; row 0 is
-// nearest the face. For a convex probe, pixels outside the sector map to nothing.
+// Maps image pixels to points in the probe plane. Two layouts:
+// - raster (the display): pixel (col, row) samples its centre in the image extent; row 0 is
+//   nearest the face; for a convex probe, pixels outside the sector map to nothing.
+// - scan lines (acquisition, as a scanner forms its image): col is the scan line, row the sample
+//   along it; a linear probe's lines are parallel and evenly spaced across the aperture, a convex
+//   probe's fan out at even angles from the centre of curvature. scan_convert() turns such an
+//   image into a raster one.
 class BscanGrid {
  public:
+  enum class Layout { kRaster, kScanLines };
+
   BscanGrid(const ProbeGeometry& probe, int width_px, int height_px);
+  static BscanGrid scan_lines(const ProbeGeometry& probe, int lines, int samples_per_line);
+
   std::optional<Eigen::Vector2d> pixel_to_plane_mm(int col, int row) const;
   // Depth of a pixel below the transducer face along its beam (z for a linear probe, distance
   // from the face arc for a convex one), or nothing outside a convex sector.
@@ -46,11 +56,38 @@ class BscanGrid {
   int width_px() const { return width_px_; }
   int height_px() const { return height_px_; }
   const ImageExtent& extent() const { return extent_; }
+  Layout layout() const { return layout_; }
+  const ProbeGeometry& probe() const { return probe_; }
 
  private:
   ProbeGeometry probe_;
   ImageExtent extent_;
   int width_px_, height_px_;
+  Layout layout_ = Layout::kRaster;
+};
+
+// Resamples a scan-line image onto a raster display grid of the same probe, interpolating
+// bilinearly between neighbouring lines and samples (in angle and radius for a convex probe).
+// Display pixels outside the sector or beyond the outermost line/sample centres by more than
+// half a spacing get `background`. The per-pixel source positions are tabulated once; apply
+// does not allocate and may run on disjoint row ranges from several threads.
+class ScanConverter {
+ public:
+  ScanConverter(const BscanGrid& scan_lines, const BscanGrid& display, std::uint8_t background);
+  void apply_rows(std::span<const std::uint8_t> lines_image, std::span<std::uint8_t> out,
+                  int row_begin, int row_end) const;
+  void apply(std::span<const std::uint8_t> lines_image, std::span<std::uint8_t> out) const {
+    apply_rows(lines_image, out, 0, display_height_px_);
+  }
+
+ private:
+  struct Tap {
+    std::int32_t index = -1;  // top-left source sample (line-major rows), -1: background
+    std::uint16_t line_weight = 0, sample_weight = 0;  // of the next line / sample, /65535
+  };
+  int lines_, samples_, display_width_px_, display_height_px_;
+  std::uint8_t background_;
+  std::vector<Tap> taps_;
 };
 
 // Echo level → displayed grey level: gain in dB, rounded, clamped to [0, 255].

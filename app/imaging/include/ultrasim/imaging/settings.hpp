@@ -32,6 +32,11 @@ struct BscanSettings {
   std::array<double, kTgcSliders> tgc_db{};  // depth-dependent gain (dB), face to imaging depth
   double dynamic_range_db = kRecordedDynamicRangeDb;  // echo range shown from black to white
   int background_grey = 0;  // grey level shown outside the volume or the mesh
+  // Acquire along scan lines, as a scanner does, then scan-convert to the width_px × height_px
+  // display: 0 slices the display grid directly. A convex probe's lateral detail then thins
+  // with depth as its lines fan out.
+  int scan_lines = 0;
+  int samples_per_line = 512;
 };
 
 }  // namespace ultrasim::imaging

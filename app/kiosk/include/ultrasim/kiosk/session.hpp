@@ -70,13 +70,17 @@ class Session {
   sim::LinearFem fem_;
   geometry::TetLocator locator_;
   BscanControls controls_;
-  imaging::ProbeGeometry probe_;  // the case's probe at the current depth
-  imaging::BscanGrid grid_;
+  imaging::ProbeGeometry probe_;         // the case's probe at the current depth
+  imaging::BscanGrid grid_;              // the display raster
+  imaging::BscanGrid acquisition_grid_;  // what is sliced: grid_, or scan lines
   imaging::DisplayMapping display_mapping_;
-  std::optional<hal::PoseSample> pose_;  // last good pose
+  std::optional<imaging::ScanConverter> scan_converter_;  // when acquiring along scan lines
+  std::vector<std::uint8_t> acquired_;                    // scan-line samples
+  std::optional<hal::PoseSample> pose_;                   // last good pose
   bool in_contact_ = false;
   bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;
+  void rebuild_image_pipeline();
   std::vector<float> node_positions_;
   std::vector<float> node_displacement_;
 };
