@@ -66,7 +66,7 @@ TEST(DisplayMapping, TgcInterpolatesBetweenSlidersOverDepth) {
   const DisplayMapping mapping(grid, settings);
   std::vector<std::uint8_t> image(16 * 80, 100);
   mapping.apply(image);
-  EXPECT_NEAR(image[0], 100, 1);  // top row, 0.25 mm deep: ~0.3 dB of TGC
+  EXPECT_NEAR(image[0], 100, 1);        // top row, 0.25 mm deep: ~0.3 dB of TGC
   EXPECT_GT(image[79 * 16], 100 + 55);  // bottom row: +14 dB = +59.5 grey
   for (int row = 1; row < 80; ++row) EXPECT_GE(image[row * 16], image[(row - 1) * 16]);
 }
