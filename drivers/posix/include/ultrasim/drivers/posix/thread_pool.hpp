@@ -1,0 +1,45 @@
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "ultrasim/hal/job_system.hpp"
+
+namespace ultrasim::drivers::posix {
+
+// hal::JobSystem on a fixed set of worker threads started once. run() wakes the workers, hands
+// out task indices through an atomic counter (the caller takes its share too) and waits until
+// every task has finished. Nothing is allocated per run.
+class ThreadPool final : public hal::JobSystem {
+ public:
+  // thread_count includes the calling thread: ThreadPool(2) starts one worker. Values < 1 → 1.
+  explicit ThreadPool(int thread_count);
+  ~ThreadPool() override;
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  int thread_count() const override { return static_cast<int>(workers_.size()) + 1; }
+  void run(int task_count, void (*task)(void*, int), void* context) override;
+
+ private:
+  void worker_loop();
+  void drain();  // runs tasks of the current batch until none is left
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  std::uint64_t batch_ = 0;  // increments per run(); workers wait for a new one
+  int busy_workers_ = 0;     // workers still inside the current batch
+  bool stopping_ = false;
+  // The current batch, read by workers after they see batch_ change (under mutex_).
+  void (*task_)(void*, int) = nullptr;
+  void* context_ = nullptr;
+  int task_count_ = 0;
+  std::atomic<int> next_{0};
+};
+
+}  // namespace ultrasim::drivers::posix

@@ -1,0 +1,68 @@
+#include "ultrasim/drivers/posix/thread_pool.hpp"
+
+#include <algorithm>
+
+namespace ultrasim::drivers::posix {
+
+ThreadPool::ThreadPool(int thread_count) {
+  const int workers = std::max(thread_count, 1) - 1;
+  workers_.reserve(static_cast<std::size_t>(workers));
+  for (int i = 0; i < workers; ++i) workers_.emplace_back([this] { worker_loop(); });
+}
+
+ThreadPool::~ThreadPool() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  for (auto& w : workers_) w.join();
+}
+
+void ThreadPool::drain() {
+  for (int i = next_.fetch_add(1, std::memory_order_relaxed); i < task_count_;
+       i = next_.fetch_add(1, std::memory_order_relaxed)) {
+    task_(context_, i);
+  }
+}
+
+void ThreadPool::worker_loop() {
+  std::uint64_t seen = 0;
+  for (;;) {
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [&] { return stopping_ || batch_ != seen; });
+      if (stopping_) return;
+      seen = batch_;
+    }
+    drain();
+    {
+      std::lock_guard lock(mutex_);
+      if (--busy_workers_ == 0) done_.notify_one();
+    }
+  }
+}
+
+void ThreadPool::run(int task_count, void (*task)(void*, int), void* context) {
+  if (task_count <= 0) return;
+  if (workers_.empty() || task_count == 1) {
+    for (int i = 0; i < task_count; ++i) task(context, i);
+    return;
+  }
+  {
+    std::lock_guard lock(mutex_);
+    task_ = task;
+    context_ = context;
+    task_count_ = task_count;
+    next_.store(0, std::memory_order_relaxed);
+    busy_workers_ = static_cast<int>(workers_.size());
+    ++batch_;
+  }
+  wake_.notify_all();
+  drain();
+  // Every worker must leave the batch before the next run() may overwrite it.
+  std::unique_lock lock(mutex_);
+  done_.wait(lock, [&] { return busy_workers_ == 0; });
+}
+
+}  // namespace ultrasim::drivers::posix

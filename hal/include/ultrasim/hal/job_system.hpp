@@ -1,0 +1,40 @@
+#pragma once
+
+#include <utility>
+
+namespace ultrasim::hal {
+
+// Runs a frame's parallel work on the machine's worker threads. Modules never start threads of
+// their own: they expose work that splits into independent pieces (row bands, tet ranges) and the
+// composition root hands them a JobSystem (DESIGN.md §3).
+class JobSystem {
+ public:
+  virtual ~JobSystem() = default;
+
+  // Threads that run tasks, the caller included (1: everything runs on the caller).
+  virtual int thread_count() const = 0;
+
+  // Calls task(context, i) once for every i in [0, task_count), spread over the threads, and
+  // returns when all have finished. The caller runs tasks too. Does not allocate. Call from one
+  // thread at a time (the frame thread); tasks must not call run() themselves.
+  virtual void run(int task_count, void (*task)(void* context, int index), void* context) = 0;
+};
+
+// parallel_for(jobs, n, [&](int i) { ... }): the same with a lambda, without allocating.
+template <typename F>
+void parallel_for(JobSystem& jobs, int task_count, F&& f) {
+  jobs.run(
+      task_count, [](void* context, int index) { (*static_cast<F*>(context))(index); },
+      const_cast<void*>(static_cast<const void*>(&f)));
+}
+
+// A JobSystem with no threads: every task runs on the caller, in order.
+class InlineJobSystem final : public JobSystem {
+ public:
+  int thread_count() const override { return 1; }
+  void run(int task_count, void (*task)(void*, int), void* context) override {
+    for (int i = 0; i < task_count; ++i) task(context, i);
+  }
+};
+
+}  // namespace ultrasim::hal

@@ -1,0 +1,56 @@
+#include "ultrasim/drivers/posix/thread_pool.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <numeric>
+#include <set>
+#include <thread>
+#include <vector>
+
+namespace ultrasim::drivers::posix {
+namespace {
+
+TEST(ThreadPool, RunsEveryTaskExactlyOnce) {
+  ThreadPool pool(2);
+  EXPECT_EQ(pool.thread_count(), 2);
+  for (int round = 0; round < 200; ++round) {
+    std::vector<std::atomic<int>> hits(97);
+    hal::parallel_for(pool, 97, [&](int i) { hits[i].fetch_add(1); });
+    for (auto& h : hits) ASSERT_EQ(h.load(), 1);
+  }
+}
+
+TEST(ThreadPool, UsesMoreThanOneThreadForSlowTasks) {
+  ThreadPool pool(2);
+  std::mutex m;
+  std::set<std::thread::id> threads;
+  hal::parallel_for(pool, 8, [&](int) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::lock_guard lock(m);
+    threads.insert(std::this_thread::get_id());
+  });
+  EXPECT_EQ(threads.size(), 2u);
+}
+
+TEST(ThreadPool, ResultsMatchTheInlineJobSystem) {
+  ThreadPool pool(3);
+  hal::InlineJobSystem inline_jobs;
+  std::vector<long> a(1000), b(1000);
+  hal::parallel_for(pool, 1000, [&](int i) { a[i] = static_cast<long>(i) * i; });
+  hal::parallel_for(inline_jobs, 1000, [&](int i) { b[i] = static_cast<long>(i) * i; });
+  EXPECT_EQ(a, b);
+}
+
+TEST(ThreadPool, ZeroAndOneThreadsRunOnTheCaller) {
+  ThreadPool pool(0);
+  EXPECT_EQ(pool.thread_count(), 1);
+  int sum = 0;
+  hal::parallel_for(pool, 10, [&](int i) { sum += i; });  // no race: one thread
+  EXPECT_EQ(sum, 45);
+  hal::parallel_for(pool, 0, [&](int) { sum = -1; });
+  EXPECT_EQ(sum, 45);
+}
+
+}  // namespace
+}  // namespace ultrasim::drivers::posix
