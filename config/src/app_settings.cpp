@@ -24,6 +24,13 @@ TableSchema<render::DisplaySettings> display_schema() {
 TableSchema<imaging::BscanSettings> bscan_schema() {
   using S = imaging::BscanSettings;
   TableSchema<S> t;
+  t.add(field("slicer", &S::slicer,
+              Choice<imaging::SlicerMethod>{{{"fast", imaging::SlicerMethod::kFast},
+                                             {"published", imaging::SlicerMethod::kPublished},
+                                             {"reference", imaging::SlicerMethod::kReference}}},
+              "How the B-scan is sampled from the deformed tissue (same image, different cost): "
+              "fast = plane cuts of the mesh, published = the dissertation's row subdivision, "
+              "reference = per-pixel point location."));
   t.add(field("width_px", &S::width_px, IntegerIn<int>{16, 4096},
               "B-scan image width in pixels; slicing time grows with width x height."));
   t.add(field("height_px", &S::height_px, IntegerIn<int>{16, 4096},

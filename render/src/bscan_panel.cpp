@@ -94,14 +94,15 @@ void add_empty_state(const ScreenLayout& layout, BscanState state, ColorBatch& o
   // Largest dot size (up to 2 units) at which the message fits with a margin.
   const float fit = std::floor((w - 12.0f * s) / static_cast<float>(text_width_dots(message)));
   const float dot = std::clamp(fit, 1.0f, 2.0f * s);
-  const float box_w = text_width(message, dot) + 12.0f * s;
-  const bool show_hint = !hint.empty() && text_width(hint, s) + 8.0f * s <= w;
+  const bool show_hint = !hint.empty() && text_width(hint, s) + 16.0f * s <= w;
+  const float box_w =
+      std::max(text_width(message, dot), show_hint ? text_width(hint, s) : 0.0f) + 12.0f * s;
   const float box_h = 7.0f * dot + 12.0f * s + (show_hint ? 11.0f * s : 0.0f);
   const float box_x = x + 0.5f * (w - box_w);
   const float box_y = y + 0.5f * (h - box_h);
   over.fill_rect(box_x, box_y, box_w, box_h, theme::kPanelBscan);
   over.outline_rect(box_x, box_y, box_w, box_h, s, colour);
-  over.text(box_x + 6.0f * s, box_y + 6.0f * s, dot, message, colour);
+  over.text(x + 0.5f * (w - text_width(message, dot)), box_y + 6.0f * s, dot, message, colour);
   if (show_hint) {
     over.text(x + 0.5f * (w - text_width(hint, s)), box_y + 6.0f * s + 7.0f * dot + 5.0f * s, s,
               hint, kWarningSoft);
@@ -115,13 +116,6 @@ BscanState bscan_state(const BscanView& bscan) {
   return is_drawable(bscan) ? BscanState::kImage : BscanState::kNoImage;
 }
 
-void add_bscan_background(const ScreenLayout& layout, ColorBatch& under) {
-  const PixelRect& p = layout.bscan_panel;
-  under.fill_rect(static_cast<float>(p.x_px), static_cast<float>(p.y_px),
-                  static_cast<float>(p.width_px), static_cast<float>(p.height_px),
-                  theme::kPanelBscan);
-}
-
 void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, BscanState state,
                        float depth_mm, ColorBatch& over) {
   const auto s = static_cast<float>(layout.ui_scale);
@@ -131,24 +125,40 @@ void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, Bsca
   const float pw = static_cast<float>(p.width_px);
   over.outline_rect(px, py, pw, static_cast<float>(p.height_px), 1.0f, theme::kPanelBorder);
 
-  // Title strip: mode on the left, depth on the right, frozen tag between.
+  // Title strip: mode and frozen tag on the left, depth on the right.
   const float text_y = py + 6.0f * s;
   over.text(px + 6.0f * s, text_y, s, "B-MODE", theme::kTextPrimary);
-  TextBuffer depth_label;
-  depth_label.append("DEPTH ").append_fixed(depth_mm / 10.0f, 1).append(" CM");
-  const float depth_w = text_width(depth_label.view(), s);
-  over.text(px + pw - 6.0f * s - depth_w, text_y, s, depth_label.view(), theme::kTextSecondary);
+  const float title_end = px + 6.0f * s + text_width("B-MODE", s);
+  float tag_end = title_end;
   if (frame.bscan.frozen && state == BscanState::kImage) {
     const float tag_w = text_width("FROZEN", s) + 8.0f * s;
-    const float tag_x = px + 0.5f * (pw - tag_w);
+    const float tag_x = title_end + 6.0f * s;
     over.fill_rect(tag_x, text_y - 3.0f * s, tag_w, 13.0f * s, theme::kFrozen);
     over.text(tag_x + 4.0f * s, text_y, s, "FROZEN", theme::kPanelBscan);
+    tag_end = tag_x + tag_w;
   }
+  // "DEPTH 4.0 CM" where there is room, else just "4.0 CM".
+  TextBuffer depth_label;
+  depth_label.append("DEPTH ").append_fixed(depth_mm / 10.0f, 1).append(" CM");
+  std::string_view depth_text = depth_label.view();
+  if (px + pw - 6.0f * s - text_width(depth_text, s) < tag_end + 6.0f * s) {
+    depth_text.remove_prefix(6);
+  }
+  over.text(px + pw - 6.0f * s - text_width(depth_text, s), text_y, s, depth_text,
+            theme::kTextSecondary);
 
   // Orientation mark above the image's left edge: the side of the probe's marker (probe -x).
   const PixelRect& image = layout.bscan_image;
-  over.fill_rect(static_cast<float>(image.x_px), static_cast<float>(image.y_px) - 4.0f * s,
+  over.fill_rect(static_cast<float>(image.x_px), static_cast<float>(image.y_px) - 5.0f * s,
                  3.0f * s, 3.0f * s, theme::kAccent);
+
+  // Grey map bar right of the image, white at the top: what each grey level on screen is.
+  const float bar_h = std::min(64.0f * s, 0.5f * static_cast<float>(image.height_px));
+  const float bar_x = static_cast<float>(image.x_px + image.width_px) + 6.0f * s;
+  const float bar_y = static_cast<float>(image.y_px);
+  over.vertical_gradient_rect(bar_x, bar_y, 4.0f * s, bar_h, {255, 255, 255, 255}, {0, 0, 0, 255});
+  over.outline_rect(bar_x - 1.0f, bar_y - 1.0f, 4.0f * s + 2.0f, bar_h + 2.0f, 1.0f,
+                    theme::kPanelBorder);
 
   add_depth_scale(layout, depth_mm, over);
   if (state == BscanState::kImage) {

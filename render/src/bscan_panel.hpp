@@ -1,8 +1,8 @@
 #pragma once
 
-// The right panel's 2D parts: black background, title strip, depth scale in cm, lateral ticks,
-// frozen tag and the no-contact / no-image states. The B-scan texture itself is drawn by the
-// SceneRenderer between the background and this overlay. Internal to render/.
+// The right panel's 2D parts (its black background is a scissored clear): title strip, depth scale
+// in cm, lateral ticks, frozen tag and the no-contact / no-image states. The B-scan texture itself
+// is drawn by the SceneRenderer between the background and this overlay. Internal to render/.
 
 #include "color_batch.hpp"
 #include "ultrasim/render/frame_input.hpp"
@@ -17,9 +17,6 @@ enum class BscanState {
 };
 
 BscanState bscan_state(const BscanView& bscan);
-
-// Adds the panel background (drawn before the image). No allocation once warmed up.
-void add_bscan_background(const ScreenLayout& layout, ColorBatch& under);
 
 // Adds everything drawn over the image. depth_mm: the axial extent the scale shows.
 void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, BscanState state,

@@ -69,6 +69,17 @@ void ColorBatch::gradient_rect(float x, float y, float w, float h, Rgba8 left, R
   triangles_.push_back({x, y + h, 0, left});
 }
 
+void ColorBatch::vertical_gradient_rect(float x, float y, float w, float h, Rgba8 top,
+                                        Rgba8 bottom) {
+  if (w <= 0.0f || h <= 0.0f) return;
+  triangles_.push_back({x, y, 0, top});
+  triangles_.push_back({x + w, y, 0, top});
+  triangles_.push_back({x + w, y + h, 0, bottom});
+  triangles_.push_back({x, y, 0, top});
+  triangles_.push_back({x + w, y + h, 0, bottom});
+  triangles_.push_back({x, y + h, 0, bottom});
+}
+
 void ColorBatch::stroke(float x0, float y0, float x1, float y1, float width, Rgba8 colour) {
   const float dx = x1 - x0;
   const float dy = y1 - y0;

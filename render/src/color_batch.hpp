@@ -44,6 +44,8 @@ class ColorBatch {
   void outline_rect(float x, float y, float w, float h, float thickness, Rgba8 colour);
   // Horizontal gradient from left to right colour.
   void gradient_rect(float x, float y, float w, float h, Rgba8 left, Rgba8 right);
+  // Vertical gradient from top to bottom colour.
+  void vertical_gradient_rect(float x, float y, float w, float h, Rgba8 top, Rgba8 bottom);
   // A straight stroke of the given width (a thin quad), for lines that need a set thickness.
   void stroke(float x0, float y0, float x1, float y1, float width, Rgba8 colour);
   // Text in the 5×7 dot font with its top-left corner at (x, y); dot_px is the size of one dot.

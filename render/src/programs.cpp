@@ -71,6 +71,51 @@ void main() {
 }
 )";
 
+// Surfaces. The view matrix is rigid (look_at), so its upper 3×3 turns normals as it turns
+// directions. Lighting happens in view space, where the eye sits at the origin.
+constexpr const char* kSurfaceVertex = R"(#version 300 es
+layout(location = 0) in vec3 a_position_mm;
+layout(location = 1) in vec3 a_normal;
+uniform mat4 u_view;
+uniform mat4 u_projection;
+out vec3 v_view_position_mm;
+out vec3 v_view_normal;
+void main() {
+  vec4 view_position = u_view * vec4(a_position_mm, 1.0);
+  v_view_position_mm = view_position.xyz;
+  v_view_normal = mat3(u_view) * a_normal;
+  gl_Position = u_projection * view_position;
+}
+)";
+
+// highp: derivatives of positions some 100 mm from the eye need more than mediump's 10 bits.
+// The face normal from derivatives always points at the viewer (window x right, y up); it is
+// computed unconditionally so that derivatives stay in uniform control flow, and it stands in
+// for a per-vertex normal of zero length (a degenerate spot of the caller's surface).
+// gl_FrontFacing flips the interpolated normal on back faces: the far, inner wall of a
+// translucent surface is lit from the side the viewer sees.
+constexpr const char* kSurfaceFragment = R"(#version 300 es
+precision highp float;
+uniform vec4 u_colour;
+uniform bool u_flat_shading;
+in vec3 v_view_position_mm;
+in vec3 v_view_normal;
+out vec4 o_colour;
+const float kAmbient = 0.28;
+void main() {
+  vec3 face_normal = normalize(cross(dFdx(v_view_position_mm), dFdy(v_view_position_mm)));
+  vec3 normal = face_normal;
+  float smooth_length2 = dot(v_view_normal, v_view_normal);
+  if (!u_flat_shading && smooth_length2 > 1e-12) {
+    normal = v_view_normal * inversesqrt(smooth_length2);
+    if (!gl_FrontFacing) normal = -normal;
+  }
+  vec3 to_eye = normalize(-v_view_position_mm);
+  float lambert = max(dot(normal, to_eye), 0.0);
+  o_colour = vec4(u_colour.rgb * (kAmbient + (1.0 - kAmbient) * lambert), u_colour.a);
+}
+)";
+
 }  // namespace
 
 Programs build_programs() {
@@ -94,6 +139,12 @@ Programs build_programs() {
     p.image.u_tint = uniform_location(p.image.id, "image", "u_tint");
     glUseProgram(p.image.id);
     glUniform1i(uniform_location(p.image.id, "image", "u_image"), 0);
+
+    p.surface.id = build_program("surface", kSurfaceVertex, kSurfaceFragment);
+    p.surface.u_view = uniform_location(p.surface.id, "surface", "u_view");
+    p.surface.u_projection = uniform_location(p.surface.id, "surface", "u_projection");
+    p.surface.u_colour = uniform_location(p.surface.id, "surface", "u_colour");
+    p.surface.u_flat_shading = uniform_location(p.surface.id, "surface", "u_flat_shading");
     glUseProgram(0);
   } catch (...) {
     destroy_programs(p);
@@ -107,6 +158,7 @@ void destroy_programs(Programs& programs) {
   glDeleteProgram(programs.colour.id);
   glDeleteProgram(programs.mesh.id);
   glDeleteProgram(programs.image.id);
+  glDeleteProgram(programs.surface.id);
   programs = {};
 }
 

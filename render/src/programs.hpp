@@ -1,6 +1,6 @@
 #pragma once
 
-// The renderer's three GLSL ES 3.00 programs, compiled and linked once at start-up. Internal to
+// The renderer's four GLSL ES 3.00 programs, compiled and linked once at start-up. Internal to
 // render/.
 
 #include <GLES3/gl3.h>
@@ -31,13 +31,25 @@ struct ImageProgram {
   GLint u_tint = -1;
 };
 
+// Closed surfaces (vessels, nerve, bone) in one colour, lit by a headlight at the eye: Lambert
+// plus a little ambient. u_flat_shading: take the face normal from screen-space derivatives of
+// the view position instead of the per-vertex normal attribute.
+struct SurfaceProgram {
+  GLuint id = 0;
+  GLint u_view = -1;
+  GLint u_projection = -1;
+  GLint u_colour = -1;
+  GLint u_flat_shading = -1;
+};
+
 struct Programs {
   ColourProgram colour;
   MeshProgram mesh;
   ImageProgram image;
+  SurfaceProgram surface;
 };
 
-// Builds all three; throws std::runtime_error with the shader log on failure. Render thread.
+// Builds all four; throws std::runtime_error with the shader log on failure. Render thread.
 Programs build_programs();
 void destroy_programs(Programs& programs);
 

@@ -32,15 +32,48 @@ SceneCamera frame_scene(const std::array<float, 3>& min_mm, const std::array<flo
   // B-scan's lateral axis does in the panel beside it.
   const Vec3 to_eye{std::sin(azimuth) * std::cos(elevation),
                     std::cos(azimuth) * std::cos(elevation), -std::sin(elevation)};
-  // The sphere must fit the narrower of the two fields of view.
-  const float half_fov_x = std::atan(std::tan(fov_y * 0.5f) * safe_aspect);
-  const float half_fov = std::min(fov_y * 0.5f, half_fov_x);
-  const float distance = radius / std::sin(half_fov) * 1.02f;
+  // Fit the box's eight corners, not its bounding sphere (which wastes a third of the panel):
+  // for each corner, the distance at which it just touches the edge of the view.
+  const float tan_half_y = std::tan(fov_y * 0.5f);
+  const float tan_half_x = tan_half_y * safe_aspect;
+  const Vec3 up{0.0f, 0.0f, -1.0f};
+  const Vec3 right = normalized(cross(to_eye * -1.0f, up));
+  const Vec3 cam_up = cross(right, to_eye * -1.0f);
+  const auto corner = [&](int i) {
+    return Vec3{(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]};
+  };
+  const auto fit_distance = [&](const Vec3& target) {
+    float needed = 0.0f;
+    for (int i = 0; i < 8; ++i) {
+      const Vec3 rel = corner(i) - target;
+      const float toward_eye = dot(rel, to_eye);
+      needed = std::max(needed, toward_eye + std::abs(dot(rel, right)) / tan_half_x);
+      needed = std::max(needed, toward_eye + std::abs(dot(rel, cam_up)) / tan_half_y);
+    }
+    return needed;
+  };
+  // Perspective makes the near side look bigger, so the box's image is off-centre: shift the
+  // target by the centre of the projected extents once, then fit again.
+  Vec3 target = centre;
+  float distance = fit_distance(target);
+  float min_x = 1e30f, max_x = -1e30f, min_y = 1e30f, max_y = -1e30f;
+  for (int i = 0; i < 8; ++i) {
+    const Vec3 rel = corner(i) - target;
+    const float depth = std::max(distance - dot(rel, to_eye), 1e-3f);
+    min_x = std::min(min_x, dot(rel, right) / depth);
+    max_x = std::max(max_x, dot(rel, right) / depth);
+    min_y = std::min(min_y, dot(rel, cam_up) / depth);
+    max_y = std::max(max_y, dot(rel, cam_up) / depth);
+  }
+  target = target + right * (0.5f * (min_x + max_x) * distance) +
+           cam_up * (0.5f * (min_y + max_y) * distance);
+  // 6 % breathing room around the scene.
+  distance = fit_distance(target) * 1.06f;
 
   SceneCamera camera;
-  camera.eye_mm = centre + to_eye * distance;
-  camera.view = look_at(camera.eye_mm, centre, {0.0f, 0.0f, -1.0f});
-  // Near and far leave room for a probe that rises out of the framed sphere.
+  camera.eye_mm = target + to_eye * distance;
+  camera.view = look_at(camera.eye_mm, target, up);
+  // Near and far leave room for a probe that rises out of the framed box.
   const float near_mm = std::max(distance - 3.0f * radius, distance * 0.05f);
   const float far_mm = distance + 3.0f * radius;
   camera.projection = perspective(fov_y, safe_aspect, near_mm, far_mm);

@@ -8,7 +8,7 @@ namespace {
 
 // Vertical space, in ui_scale units, taken by the B-scan panel's title strip and bottom margin,
 // and the width of the depth scale strip (two label digits, gap, long tick, gap).
-constexpr int kTitleStripUnits = 17;
+constexpr int kTitleStripUnits = 22;
 constexpr int kBottomMarginUnits = 10;
 constexpr int kDepthScaleUnits = 26;
 

@@ -29,20 +29,18 @@ float positive_or(float value, float fallback) {
 
 // Title bar: product mark and name on the left; the scan state and frame counter on the right.
 void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState state,
-                ColorBatch& under, ColorBatch& over) {
+                ColorBatch& over) {
   const auto s = static_cast<float>(layout.ui_scale);
   const PixelRect& h = layout.header;
   const float w = static_cast<float>(h.width_px);
   const float hh = static_cast<float>(h.height_px);
-  under.fill_rect(0.0f, 0.0f, w, hh, theme::kHeader);
-  under.fill_rect(0.0f, hh - 1.0f, w, 1.0f, theme::kPanelBorder);
+  over.fill_rect(0.0f, hh - 1.0f, w, 1.0f, theme::kPanelBorder);
 
   const float text_y = 0.5f * (hh - 7.0f * s);
   float x = 6.0f * s;
   over.fill_rect(x, text_y, 3.0f * s, 7.0f * s, theme::kAccent);
   x += 7.0f * s;
   x += over.text(x, text_y, s, "ULTRASIM", theme::kTextPrimary) + 8.0f * s;
-  over.text(x, text_y, s, "ULTRASOUND TRAINER", theme::kTextSecondary);
 
   detail::TextBuffer counter;
   counter.append("FRAME ").append_int(frame.frame_index);
@@ -67,15 +65,31 @@ void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState 
   // A small lamp before the word, in its colour.
   over.fill_rect(right - 6.0f * s, text_y + 2.0f * s, 3.0f * s, 3.0f * s, status_colour);
   over.text(right, text_y, s, status, status_colour);
+
+  // The subtitle only where it does not run into the status on a narrow screen.
+  constexpr std::string_view kSubtitle = "ULTRASOUND TRAINER";
+  if (x + static_cast<float>(detail::text_width_dots(kSubtitle)) * s + 12.0f * s <
+      right - 6.0f * s) {
+    over.text(x, text_y, s, kSubtitle, theme::kTextSecondary);
+  }
 }
 
-void add_view_panel(const ScreenLayout& layout, ColorBatch& under, ColorBatch& over) {
+void add_view_panel(const ScreenLayout& layout, ColorBatch& over) {
   const PixelRect& r = layout.view_3d;
-  under.fill_rect(static_cast<float>(r.x_px), static_cast<float>(r.y_px),
-                  static_cast<float>(r.width_px), static_cast<float>(r.height_px), theme::kPanel3d);
   over.outline_rect(static_cast<float>(r.x_px), static_cast<float>(r.y_px),
                     static_cast<float>(r.width_px), static_cast<float>(r.height_px), 1.0f,
                     theme::kPanelBorder);
+}
+
+// Fills a screen rectangle with a colour by a scissored clear: the cheapest fill there is on a
+// software rasteriser (no shading, no blending). Leaves the scissor test off.
+void clear_rect(const PixelRect& r, Rgba8 colour, int screen_height_px) {
+  const auto c = detail::to_float(colour);
+  glEnable(GL_SCISSOR_TEST);
+  glScissor(r.x_px, screen_height_px - (r.y_px + r.height_px), r.width_px, r.height_px);
+  glClearColor(c[0], c[1], c[2], 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT);
+  glDisable(GL_SCISSOR_TEST);
 }
 
 }  // namespace
@@ -90,8 +104,7 @@ struct SceneRenderer::Impl {
   Display& display;
   SceneStyle style;
   detail::Programs programs;
-  ColorBatch under;  // 2D, drawn before the 3D view and the image
-  ColorBatch over;   // 2D, drawn last: frames, scales, text
+  ColorBatch over;  // 2D, drawn last: frames, scales, text
   detail::BscanTexture bscan_texture;
   detail::TexturedQuads quads;
   detail::TissueView tissue;
@@ -139,21 +152,18 @@ void SceneRenderer::draw(const FrameInput& frame) {
   glClearColor(bg[0], bg[1], bg[2], 1.0f);
   glClearDepthf(1.0f);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  clear_rect(layout.header, theme::kHeader, h);
+  clear_rect(layout.view_3d, theme::kPanel3d, h);
+  clear_rect(layout.bscan_panel, theme::kPanelBscan, h);
 
-  im.under.clear();
   im.over.clear();
-  add_header(layout, frame, state, im.under, im.over);
-  add_view_panel(layout, im.under, im.over);
+  add_header(layout, frame, state, im.over);
+  add_view_panel(layout, im.over);
   im.tissue.add_overlay(layout, im.over);
-  detail::add_bscan_background(layout, im.under);
   detail::add_bscan_overlay(frame, layout, state, image_depth_mm, im.over);
 
   const detail::Mat4 pixels_to_clip =
       detail::pixel_ortho(static_cast<float>(w), static_cast<float>(h));
-  glUseProgram(im.programs.colour.id);
-  glUniformMatrix4fv(im.programs.colour.u_matrix, 1, GL_FALSE, pixels_to_clip.data());
-  im.under.draw();
-
   im.tissue.draw(frame, layout, w, h, im.programs, im.bscan_texture, show_image, im.quads);
 
   if (show_image) {
@@ -166,9 +176,13 @@ void SceneRenderer::draw(const FrameInput& frame) {
     glUniformMatrix4fv(im.programs.image.u_matrix, 1, GL_FALSE, pixels_to_clip.data());
     glUniform4f(im.programs.image.u_tint, 1.0f, 1.0f, 1.0f, 1.0f);
     im.bscan_texture.bind();
+    // Opaque: the image replaces the black behind it, and blending would only cost fill rate
+    // (CPU time on a software rasteriser).
+    glDisable(GL_BLEND);
     // Row 0 of the B-scan (the probe face) at the top of the panel.
     im.quads.draw(1, {{{x0, y0, 0}, {x1, y0, 0}, {x1, y1, 0}, {x0, y1, 0}}},
                   {{{0, 0}, {1, 0}, {1, 1}, {0, 1}}});
+    glEnable(GL_BLEND);
   }
 
   glUseProgram(im.programs.colour.id);

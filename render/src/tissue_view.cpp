@@ -251,7 +251,7 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
   const ProbeView& probe = frame.probe;
   const float body_height = positive_or(probe.body_height_mm, 60.0f);
   const SceneCamera camera =
-      frame_scene(frame.scene_min_mm, frame.scene_max_mm, 0.5f * body_height, style_,
+      frame_scene(frame.scene_min_mm, frame.scene_max_mm, body_height, style_,
                   static_cast<float>(r.width_px) / static_cast<float>(r.height_px));
   const Mat4 view_projection = multiply(camera.projection, camera.view);
 
@@ -270,6 +270,11 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
     glDrawElements(GL_LINES, index_count, GL_UNSIGNED_INT, nullptr);
     glBindVertexArray(0);
   }
+
+  // Opaque surfaces inside the tissue: depth-tested against the lines, so the wireframe in front
+  // of a vessel crosses it and the wireframe behind it is hidden ("under the skin").
+  surfaces_.upload(frame.surfaces);
+  surfaces_.draw_opaque(programs.surface, camera);
 
   // Bounds, collider, probe and the plane's frame.
   build_geometry(frame);
@@ -307,6 +312,10 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
   glPolygonOffset(1.0f, 1.0f);
   batch_.draw();
   glDisable(GL_POLYGON_OFFSET_FILL);
+
+  // Translucent surfaces after everything opaque, so what lies behind them is already there to
+  // show through; before the image plane, which is translucent too and drawn last.
+  surfaces_.draw_translucent(programs.surface, camera);
 
   // The B-scan on its plane, translucent so the mesh behind it still shows; drawn last, without
   // depth writes, so it does not hide what lies in front of it.

@@ -1,7 +1,8 @@
 #pragma once
 
-// The left panel: the tissue mesh in 3D, the probe, the textured image plane under it, the
-// collider, and the panel's legend. Internal to render/.
+// The left panel: the tissue mesh in 3D, the surfaces inside it (vessels, nerve, bone), the
+// probe, the textured image plane under it, the collider, and the panel's legend. Internal to
+// render/.
 
 #include <GLES3/gl3.h>
 
@@ -9,6 +10,7 @@
 #include "color_batch.hpp"
 #include "programs.hpp"
 #include "stream_buffer.hpp"
+#include "surface_layer.hpp"
 #include "textured_quads.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/render/scene_layout.hpp"
@@ -16,7 +18,8 @@
 
 namespace ultrasim::render::detail {
 
-// Render thread only. After the first frame draw() allocates nothing unless the mesh grows.
+// Render thread only. After the first frame draw() allocates nothing unless the mesh grows or
+// the frame brings more surfaces than any frame before.
 class TissueView {
  public:
   explicit TissueView(const SceneStyle& style);
@@ -45,6 +48,7 @@ class TissueView {
   StreamBuffer displacements_;
   StreamBuffer indices_;
   GLuint mesh_vao_ = 0;
+  SurfaceLayer surfaces_;
   ColorBatch batch_;
 };
 

@@ -28,7 +28,8 @@ std::vector<drivers::sim_probe::Keyframe> make_script(const std::string& name,
 
 }  // namespace
 
-std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock) {
+std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock,
+                                   hal::JobSystem& jobs) {
   const config::AppSettings settings =
       options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
   const TissueCase tissue = load_tissue_case(options.case_dir);
@@ -37,7 +38,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   render::OffscreenDisplay display(settings.display);
   render::SceneRenderer renderer(display);
   std::filesystem::create_directories(options.out_dir);  // only once everything could start
-  Session session(tissue, settings, clock);
+  Session session(tissue, settings, clock, jobs);
 
   RunReport report;
   report.case_name = tissue.settings.name;
@@ -47,6 +48,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.bscan_width_px = session.bscan_width_px();
   report.bscan_height_px = session.bscan_height_px();
   report.pcg_iterations_per_frame = settings.fem.pcg_iterations_per_frame;
+  report.threads = jobs.thread_count();
+  for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
+  report.slicer = settings.bscan.scan_lines > 0                           ? "reference (scan lines)"
+                  : settings.bscan.slicer == imaging::SlicerMethod::kFast ? "fast"
+                  : settings.bscan.slicer == imaging::SlicerMethod::kPublished ? "published"
+                                                                               : "reference";
   const std::int64_t budget_us = settings.frame.budget_us;
   report.frame = sched::FrameTimeStats(budget_us);
 
@@ -78,6 +85,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.fem.contact_force_n);
     report.sim.record(outcome.sim_us);
     report.slice.record(outcome.slice_us);
+    report.surfaces.record(outcome.surfaces_us);
     report.render.record(end - rendered_from);
     report.frame.record(end - start);
 

@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "ultrasim/drivers/posix/monotonic_clock.hpp"
+#include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/kiosk/headless_run.hpp"
 
 #ifndef ULTRASIM_DEFAULT_CASE_DIR
@@ -19,6 +20,7 @@ int main(int argc, char** argv) {
   options.out_dir = "out/run";
   bool headless = false;
   std::string config_path;
+  int threads = 2;
   app.add_flag("--headless", headless,
                "run without a display: a scripted probe, PNG screenshots and a report");
   app.add_option("--case", options.case_dir, "case folder (holding case.toml)")
@@ -27,6 +29,9 @@ int main(int argc, char** argv) {
   app.add_option("--script", options.script, "scripted probe motion for headless runs")
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "output folder for PNGs and report.json")
+      ->capture_default_str();
+  app.add_option("--threads", threads, "threads for the frame's parallel work (the kiosk: 2)")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -38,7 +43,8 @@ int main(int argc, char** argv) {
   if (!config_path.empty()) options.app_config = config_path;
   try {
     const ultrasim::drivers::posix::MonotonicClock clock;
-    const auto report = ultrasim::kiosk::run_headless(options, clock);
+    ultrasim::drivers::posix::ThreadPool jobs(threads);
+    const auto report = ultrasim::kiosk::run_headless(options, clock, jobs);
     std::cout << "ultrasim-kiosk: wrote " << report.string() << "\n";
     return 0;
   } catch (const std::exception& e) {

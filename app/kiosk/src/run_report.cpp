@@ -36,7 +36,9 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"renderer\": " << quoted(r.renderer) << ",\n"
       << "  \"mesh\": {\"nodes\": " << r.mesh_nodes << ", \"tets\": " << r.mesh_tets << "},\n"
       << "  \"bscan\": {\"width_px\": " << r.bscan_width_px
-      << ", \"height_px\": " << r.bscan_height_px << "},\n"
+      << ", \"height_px\": " << r.bscan_height_px << ", \"slicer\": " << quoted(r.slicer) << "},\n"
+      << "  \"threads\": " << r.threads << ",\n"
+      << "  \"surface_triangles\": " << r.surface_triangles << ",\n"
       << "  \"fem\": {\"method\": \"linear-pcg\", \"pcg_iterations_per_frame\": "
       << r.pcg_iterations_per_frame << ", \"max_contact_force_n\": " << r.max_contact_force_n
       << ", \"solver_resets\": " << r.solver_resets << "},\n"
@@ -49,6 +51,8 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   write_stats(out, r.sim);
   out << ",\n    \"bscan\": ";
   write_stats(out, r.slice);
+  out << ",\n    \"surfaces\": ";
+  write_stats(out, r.surfaces);
   out << ",\n    \"render\": ";
   write_stats(out, r.render);
   out << "\n  },\n  \"snapshots\": [";

@@ -37,10 +37,11 @@ void check_range(const char* name, double value, double lo, double hi) {
 }  // namespace
 
 Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
-                 const hal::Clock& clock)
+                 const hal::Clock& clock, hal::JobSystem& jobs)
     : tissue_(tissue),
       settings_(settings),
       clock_(clock),
+      jobs_(jobs),
       fem_(tissue.mesh, tissue.tet_materials, tissue.fixed_nodes, settings.fem),
       locator_(tissue.mesh),
       controls_(controls_from(settings, tissue.settings.probe)),
@@ -51,7 +52,8 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       bscan_(static_cast<std::size_t>(settings.bscan.width_px) * settings.bscan.height_px,
              static_cast<std::uint8_t>(settings.bscan.background_grey)),
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
-      node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f) {
+      node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f),
+      structures_(tissue.structures) {
   rebuild_image_pipeline();
 }
 
@@ -65,6 +67,13 @@ void Session::rebuild_image_pipeline() {
   } else {
     acquisition_grid_ = grid_;
     scan_converter_.reset();
+  }
+  fast_slicer_.reset();
+  published_slicer_.reset();
+  if (!scan_converter_ && settings_.bscan.slicer == imaging::SlicerMethod::kFast) {
+    fast_slicer_.emplace(tissue_.mesh, grid_);
+  } else if (!scan_converter_ && settings_.bscan.slicer == imaging::SlicerMethod::kPublished) {
+    published_slicer_.emplace(tissue_.mesh, grid_);
   }
   acquired_.assign(
       static_cast<std::size_t>(acquisition_grid_.width_px()) * acquisition_grid_.height_px(),
@@ -105,25 +114,24 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   const hal::TimestampUs t1 = clock_.now_us();
 
   const auto deformed = fem_.deformed_positions_mm();
-  locator_.rebuild(deformed);
   if (controls_.frozen) {
     // The image holds still, as a frozen scanner's does; the tissue keeps following the probe.
   } else if (in_contact_) {
     imaging::ProbePose probe;
     probe.face_center_mm = pose_->position_mm;
     probe.axes = pose_->orientation.toRotationMatrix();
-    // Slice the echo as recorded; the display controls are applied after, in dB.
-    imaging::BscanSettings echo_only = settings_.bscan;
-    echo_only.gain_db = 0.0;
-    if (scan_converter_) {
-      imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe,
-                                        acquisition_grid_, echo_only, acquired_);
-      display_mapping_.apply(acquired_);
-      scan_converter_->apply(acquired_, bscan_);
+    if (fast_slicer_ || published_slicer_) {
+      slice_in_parallel(probe);
     } else {
-      imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe, grid_,
-                                        echo_only, bscan_);
-      display_mapping_.apply(bscan_);
+      // Slice the echo as recorded; the display controls are applied after, in dB.
+      imaging::BscanSettings echo_only = settings_.bscan;
+      echo_only.gain_db = 0.0;
+      locator_.rebuild(deformed);
+      auto& target = scan_converter_ ? acquired_ : bscan_;
+      imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe,
+                                        acquisition_grid_, echo_only, target);
+      display_mapping_.apply(target);
+      if (scan_converter_) scan_converter_->apply(acquired_, bscan_);
     }
     image_shows_tissue_ = true;
   } else {
@@ -137,9 +145,40 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
         static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
   }
   const hal::TimestampUs t2 = clock_.now_us();
+  structures_.update(deformed, jobs_);
+  const hal::TimestampUs t3 = clock_.now_us();
   outcome.sim_us = t1 - t0;
   outcome.slice_us = t2 - t1;
+  outcome.surfaces_us = t3 - t2;
   return outcome;
+}
+
+void Session::slice_in_parallel(const imaging::ProbePose& probe) {
+  const auto deformed = fem_.deformed_positions_mm();
+  if (fast_slicer_) {
+    const int parts = std::min(2 * jobs_.thread_count(), imaging::FastSlicer::kMaxParts);
+    fast_slicer_->begin_prepare(tissue_.volume, deformed, probe, parts);
+    hal::parallel_for(jobs_, parts, [&](int part) { fast_slicer_->find_cuts(part); });
+    fast_slicer_->end_prepare();
+  } else {
+    published_slicer_->prepare(tissue_.volume, deformed, probe);
+  }
+  // Bands of rows from a shared counter: rows below the tissue cost little, so small bands
+  // keep both threads busy. Each band is sliced and then mapped while it is in cache.
+  imaging::BscanSettings echo_only = settings_.bscan;
+  echo_only.gain_db = 0.0;
+  constexpr int kBandRows = 16;
+  const int rows = grid_.height_px();
+  const int bands = (rows + kBandRows - 1) / kBandRows;
+  hal::parallel_for(jobs_, bands, [&](int band) {
+    const int begin = band * kBandRows, end = std::min(rows, begin + kBandRows);
+    if (fast_slicer_) {
+      fast_slicer_->slice_rows(echo_only, begin, end, bscan_);
+    } else {
+      published_slicer_->slice_rows(echo_only, begin, end, bscan_);
+    }
+    display_mapping_.apply_rows(bscan_, begin, end);
+  });
 }
 
 render::FrameInput Session::frame_input(std::int64_t frame_index) const {
@@ -157,6 +196,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.mesh.node_positions_mm = node_positions_;
   frame.mesh.line_indices = tissue_.surface_lines;
   frame.mesh.node_displacement_mm = node_displacement_;
+  frame.surfaces = structures_.views();
 
   // A convex face is the chord of its arc, not the sector's width at depth.
   const double face_width_mm =

@@ -90,6 +90,7 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
     c.surface_lines.push_back(static_cast<std::uint32_t>(edge[0]));
     c.surface_lines.push_back(static_cast<std::uint32_t>(edge[1]));
   }
+  c.structures = build_display_surfaces(c.labels, c.mesh);
   return c;
 }
 

@@ -22,6 +22,7 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.display.backend, b.display.backend);
   EXPECT_EQ(a.display.width_px, b.display.width_px);
   EXPECT_EQ(a.display.height_px, b.display.height_px);
+  EXPECT_EQ(a.bscan.slicer, b.bscan.slicer);
   EXPECT_EQ(a.bscan.width_px, b.bscan.width_px);
   EXPECT_EQ(a.bscan.height_px, b.bscan.height_px);
   EXPECT_EQ(a.bscan.gain_db, b.bscan.gain_db);
@@ -74,6 +75,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   AppSettings changed;
   changed.display.width_px = 1920;
   changed.display.height_px = 1080;
+  changed.bscan.slicer = imaging::SlicerMethod::kPublished;
   changed.bscan.width_px = 300;
   changed.bscan.height_px = 200;
   changed.bscan.gain_db = -12.25;
@@ -134,8 +136,8 @@ TEST(AppSettings, UnknownKeyNamesFileLineKeyAndSuggestion) {
       [] { (void)parse_app_settings("[bscan]\nwidth_px = 64\n\nwidht_px = 32\n", "app.toml"); });
   EXPECT_EQ(caught.message,
             "app.toml:4:1: bscan.widht_px: unknown key (did you mean \"width_px\"?); allowed: "
-            "width_px, height_px, gain_db, tgc_db, dynamic_range_db, background_grey, scan_lines, "
-            "samples_per_line");
+            "slicer, width_px, height_px, gain_db, tgc_db, dynamic_range_db, background_grey, "
+            "scan_lines, samples_per_line");
 }
 
 TEST(AppSettings, UnknownTableIsAnError) {

@@ -27,10 +27,11 @@ class SessionTest : public ::testing::Test {
   TissueCase tissue_;
   config::AppSettings settings_;
   hal::ManualClock clock_;
+  hal::InlineJobSystem jobs_;
 };
 
 TEST_F(SessionTest, NoPoseYetMeansNoContactAndABlankImage) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   const FrameOutcome outcome = session.update(std::nullopt);
   EXPECT_TRUE(outcome.pose_rejected);
   EXPECT_FALSE(outcome.in_contact);
@@ -39,7 +40,7 @@ TEST_F(SessionTest, NoPoseYetMeansNoContactAndABlankImage) {
 }
 
 TEST_F(SessionTest, PressingShowsTissueAndPushesTheSkinDown) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   FrameOutcome outcome;
   for (int f = 0; f < 10; ++f) outcome = session.update(pose_at(0.3 * f));
   EXPECT_TRUE(outcome.in_contact);
@@ -55,8 +56,31 @@ TEST_F(SessionTest, PressingShowsTissueAndPushesTheSkinDown) {
   EXPECT_NEAR(max_displacement, 2.7, 0.05);
 }
 
+TEST_F(SessionTest, TheVeinSurfaceFollowsTheCompressedTissue) {
+  ASSERT_EQ(tissue_.structures.size(), 1u);  // the tiny case has a vein only
+  EXPECT_EQ(tissue_.structures[0].label, 4);
+  Session session(tissue_, settings_, clock_, jobs_);
+  session.update(pose_at(-3.0));  // lifted: the surface sits where it was extracted
+  const auto at_rest = session.frame_input(0).surfaces;
+  ASSERT_EQ(at_rest.size(), 1u);
+  const std::vector<float> rest(at_rest[0].positions_mm.begin(), at_rest[0].positions_mm.end());
+  for (std::size_t v = 0; v < rest.size(); v += 3) {
+    const auto& p = tissue_.structures[0].rest.vertices_mm[v / 3];
+    ASSERT_NEAR(rest[v + 2], p.z(), 1e-4);
+  }
+  for (int f = 0; f < 10; ++f) session.update(pose_at(0.4 * f));
+  const auto pressed = session.frame_input(0).surfaces[0].positions_mm;
+  float top_rest = 1e9f, top_pressed = 1e9f;
+  for (std::size_t v = 2; v < rest.size(); v += 3) {
+    top_rest = std::min(top_rest, rest[v]);
+    top_pressed = std::min(top_pressed, pressed[v]);
+  }
+  EXPECT_GT(top_pressed, top_rest + 0.5f) << "the vein's top is pushed deeper by the probe";
+  for (float n : session.frame_input(0).surfaces[0].normals) ASSERT_TRUE(std::isfinite(n));
+}
+
 TEST_F(SessionTest, BadSamplesAreDroppedAndTheLastGoodPoseKept) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   for (int f = 0; f < 10; ++f) session.update(pose_at(2.0));
   const std::vector<std::uint8_t> before(session.bscan().begin(), session.bscan().end());
 
@@ -80,7 +104,7 @@ TEST_F(SessionTest, BadSamplesAreDroppedAndTheLastGoodPoseKept) {
 }
 
 TEST_F(SessionTest, LiftingTheProbeEndsContactAndBlanksTheImage) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   for (int f = 0; f < 5; ++f) session.update(pose_at(1.0));
   ASSERT_TRUE(session.in_contact());
   FrameOutcome outcome;
@@ -96,7 +120,7 @@ double mean_grey(std::span<const std::uint8_t> image) {
 }
 
 TEST_F(SessionTest, GainAndDynamicRangeChangeTheImageOnTheDecibelScale) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   for (int f = 0; f < 5; ++f) session.update(pose_at(1.0));
   const double neutral = mean_grey(session.bscan());
   BscanControls brighter = session.controls();
@@ -113,7 +137,7 @@ TEST_F(SessionTest, GainAndDynamicRangeChangeTheImageOnTheDecibelScale) {
 }
 
 TEST_F(SessionTest, DepthControlRebuildsTheImageGrid) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   BscanControls deeper = session.controls();
   EXPECT_EQ(deeper.depth_mm, 16.0);  // the tiny case's probe
   deeper.depth_mm = 12.0;
@@ -126,7 +150,7 @@ TEST_F(SessionTest, DepthControlRebuildsTheImageGrid) {
 }
 
 TEST_F(SessionTest, FreezeHoldsTheImageWhileTheTissueFollowsTheProbe) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   for (int f = 0; f < 5; ++f) session.update(pose_at(0.5));
   BscanControls frozen = session.controls();
   frozen.frozen = true;
@@ -143,11 +167,11 @@ TEST_F(SessionTest, FreezeHoldsTheImageWhileTheTissueFollowsTheProbe) {
 }
 
 TEST_F(SessionTest, ScanLineAcquisitionShowsTheSameTissueAsTheDisplayGrid) {
-  Session direct(tissue_, settings_, clock_);
+  Session direct(tissue_, settings_, clock_, jobs_);
   config::AppSettings scanned_settings = settings_;
   scanned_settings.bscan.scan_lines = 48;
   scanned_settings.bscan.samples_per_line = 96;
-  Session scanned(tissue_, scanned_settings, clock_);
+  Session scanned(tissue_, scanned_settings, clock_, jobs_);
   for (int f = 0; f < 5; ++f) {
     direct.update(pose_at(1.0));
     scanned.update(pose_at(1.0));
@@ -157,8 +181,24 @@ TEST_F(SessionTest, ScanLineAcquisitionShowsTheSameTissueAsTheDisplayGrid) {
   EXPECT_NEAR(mean_grey(scanned.bscan()), mean_grey(direct.bscan()), 3.0);
 }
 
+TEST_F(SessionTest, EverySlicerShowsTheSameImage) {
+  std::vector<std::vector<std::uint8_t>> images;
+  for (auto method : {imaging::SlicerMethod::kReference, imaging::SlicerMethod::kFast,
+                      imaging::SlicerMethod::kPublished}) {
+    config::AppSettings s = settings_;
+    s.bscan.slicer = method;
+    s.bscan.gain_db = 4.0;  // the display mapping applies after every slicer alike
+    Session session(tissue_, s, clock_, jobs_);
+    for (int f = 0; f < 6; ++f) session.update(pose_at(0.4 * f));
+    images.emplace_back(session.bscan().begin(), session.bscan().end());
+  }
+  for (std::size_t m = 1; m < images.size(); ++m)
+    for (std::size_t i = 0; i < images[0].size(); ++i)
+      ASSERT_LE(std::abs(images[m][i] - images[0][i]), 1) << "method " << m << " pixel " << i;
+}
+
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
-  Session session(tissue_, settings_, clock_);
+  Session session(tissue_, settings_, clock_, jobs_);
   const BscanControls before = session.controls();
   BscanControls bad = before;
   bad.gain_db = 90.0;

@@ -50,7 +50,8 @@ TEST(TissueCase, ANoFixedNodeCaseIsRejectedBeforeItCanBeSolved) {
   const TinyCase files(tiny_case_toml("[]"));
   const TissueCase c = load_tissue_case(files.dir());
   const hal::ManualClock clock;
-  expect_error_mentions([&] { Session session(c, config::AppSettings{}, clock); },
+  hal::InlineJobSystem jobs;
+  expect_error_mentions([&] { Session session(c, config::AppSettings{}, clock, jobs); },
                         {"no fixed nodes", "singular"});
 }
 

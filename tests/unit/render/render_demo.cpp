@@ -1,5 +1,8 @@
-// Writes a screenshot of the kiosk screen drawn from the synthetic scene and times draw +
-// read-back per frame. Usage: render_demo [out.png] [width height] [frames] [msaa_samples]
+// Writes a screenshot of the kiosk screen drawn from the synthetic scene (with its vein, artery,
+// nerve and bone) and times draw + read-back per frame. Usage:
+//   render_demo [out.png] [width height] [frames] [msaa_samples] [surface_triangles] [state]
+// surface_triangles: about how many triangles the four structures have together (default 15000;
+// 0 draws the scene without them). state: live (default), nocontact or frozen.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -21,10 +24,17 @@ int main(int argc, char** argv) {
   const int frames = argc > 4 ? std::atoi(argv[4]) : 60;
   OffscreenOptions options;
   options.msaa_samples = argc > 5 ? std::atoi(argv[5]) : 0;
+  const int surface_triangles = argc > 6 ? std::atoi(argv[6]) : 15000;
 
   OffscreenDisplay display(settings, options);
   SceneRenderer renderer(display);
   testing::SyntheticScene scene = testing::make_synthetic_scene();
+  const std::string state = argc > 7 ? argv[7] : "live";
+  scene.frame.bscan.in_contact = state != "nocontact";
+  scene.frame.bscan.frozen = state == "frozen";
+  testing::add_synthetic_structures(scene, surface_triangles);
+  std::size_t triangles = 0;
+  for (const SurfaceView& surface : scene.frame.surfaces) triangles += surface.triangles.size() / 3;
   RgbaImage image;
 
   const auto draw_once = [&] {
@@ -47,9 +57,10 @@ int main(int argc, char** argv) {
   std::sort(ms.begin(), ms.end());
   if (!ms.empty()) {
     std::printf(
-        "%s %dx%d msaa=%d: draw+readback median %.2f ms, p90 %.2f ms, min %.2f ms (%d frames)\n",
+        "%s %dx%d msaa=%d, %zu surface triangles: draw+readback median %.2f ms, p90 %.2f ms, "
+        "min %.2f ms (%d frames)\n",
         display.renderer_name(), settings.width_px, settings.height_px, display.msaa_samples(),
-        ms[ms.size() / 2], ms[ms.size() * 9 / 10], ms.front(), frames);
+        triangles, ms[ms.size() / 2], ms[ms.size() * 9 / 10], ms.front(), frames);
   }
   std::printf("wrote %s\n", out.c_str());
   return 0;

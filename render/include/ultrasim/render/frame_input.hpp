@@ -26,6 +26,14 @@ struct MeshView {
   std::span<const float> node_displacement_mm;  // |u| per node, for colouring (may be empty)
 };
 
+// A closed triangle surface (vessel, nerve, bone) embedded in the tissue, already deformed.
+struct SurfaceView {
+  std::span<const float> positions_mm;       // x,y,z per vertex
+  std::span<const float> normals;            // x,y,z per vertex, unit; empty: flat shading
+  std::span<const std::uint32_t> triangles;  // 3 vertex indices each, counter-clockwise outside
+  std::array<float, 4> rgba{0.8f, 0.2f, 0.2f, 1.0f};  // colour; alpha < 1: translucent
+};
+
 struct ProbeView {
   // Column-major 4×4 rigid transform from the probe frame (origin at the face centre, +x along
   // the array, +y elevational, +z along the beam) to patient space.
@@ -42,6 +50,7 @@ struct FrameInput {
   BscanView bscan;
   MeshView mesh;
   ProbeView probe;
+  std::span<const SurfaceView> surfaces;       // drawn inside the tissue; may be empty
   std::array<float, 3> scene_min_mm{0, 0, 0};  // bounds of the tissue, for framing the 3D view
   std::array<float, 3> scene_max_mm{1, 1, 1};
   std::int64_t frame_index = 0;

@@ -24,8 +24,17 @@ inline constexpr double kRecordedDynamicRangeDb = 60.0;
 // imaging depth (last), interpolated linearly between them, as on a scanner's panel.
 inline constexpr int kTgcSliders = 8;
 
+// How the B-scan is sampled from the deformed tissue; all three give the same image (±1 grey
+// level, tested). Scan-line acquisition always uses the reference.
+enum class SlicerMethod {
+  kFast,       // cut the mesh with the image plane and scan-convert the cuts (multithreaded)
+  kPublished,  // the dissertation's row subdivision over 32 regions (multithreaded)
+  kReference,  // locate every pixel in the deformed mesh (single thread; the ground truth)
+};
+
 // The B-scan image grid and display mapping.
 struct BscanSettings {
+  SlicerMethod slicer = SlicerMethod::kFast;
   int width_px = 512;
   int height_px = 512;
   double gain_db = 0.0;                      // overall gain added to every echo level (dB)

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "ultrasim/hal/clock.hpp"
+#include "ultrasim/hal/job_system.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -19,8 +20,10 @@ struct HeadlessRunOptions {
 // frame clock (one frame per frame budget, so the output is deterministic), every frame is
 // simulated, sliced and rendered offscreen, and at each of the script's markers the B-scan and
 // the whole screen are written as PNGs. Writes report.json (frames, frame-time percentiles per
-// stage, deadline misses, contact force) into out_dir. `clock` measures how long work took.
-// Throws on bad input (naming the file); returns the report's path.
-std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock);
+// stage, deadline misses, contact force) into out_dir. `clock` measures how long work took;
+// `jobs` runs the frame's parallel work. Throws on bad input (naming the file); returns the
+// report's path.
+std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock,
+                                   hal::JobSystem& jobs);
 
 }  // namespace ultrasim::kiosk

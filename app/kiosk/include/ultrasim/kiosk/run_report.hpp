@@ -26,6 +26,9 @@ struct RunReport {
   int bscan_width_px = 0;
   int bscan_height_px = 0;
   int pcg_iterations_per_frame = 0;
+  int threads = 1;
+  int surface_triangles = 0;
+  std::string slicer;
   std::int64_t frames = 0;
   std::int64_t poses_rejected = 0;
   std::int64_t frames_in_contact = 0;
@@ -34,6 +37,7 @@ struct RunReport {
   sched::FrameTimeStats frame{0};
   sched::FrameTimeStats sim{0};
   sched::FrameTimeStats slice{0};
+  sched::FrameTimeStats surfaces{0};
   sched::FrameTimeStats render{0};
   std::vector<Snapshot> snapshots;
 };

@@ -9,9 +9,12 @@
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/hal/clock.hpp"
+#include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/hal/pose_sample.hpp"
 #include "ultrasim/imaging/bscan.hpp"
 #include "ultrasim/imaging/display_mapping.hpp"
+#include "ultrasim/imaging/fast_slicer.hpp"
+#include "ultrasim/imaging/published_slicer.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
@@ -23,8 +26,9 @@ struct FrameOutcome {
   bool pose_rejected = false;  // the sample was missing, unhealthy or non-finite: last good kept
   bool in_contact = false;     // the probe touches the tissue, so there is an image
   sim::FemStepStats fem;
-  std::int64_t sim_us = 0;    // collision + FEM solve
-  std::int64_t slice_us = 0;  // point-location rebuild + B-scan synthesis
+  std::int64_t sim_us = 0;       // collision + FEM solve
+  std::int64_t slice_us = 0;     // B-scan synthesis and display mapping
+  std::int64_t surfaces_us = 0;  // vessel surfaces following the tissue
 };
 
 // The scanner's controls a trainee can change while scanning.
@@ -40,8 +44,10 @@ struct BscanControls {
 // The frame thread calls update() then frame_input(); nothing else touches it.
 class Session {
  public:
-  // `tissue` and `clock` must outlive the session. Allocates all per-frame buffers.
-  Session(const TissueCase& tissue, const config::AppSettings& settings, const hal::Clock& clock);
+  // `tissue`, `clock` and `jobs` must outlive the session; `jobs` runs the B-scan's parallel
+  // work. Allocates all per-frame buffers.
+  Session(const TissueCase& tissue, const config::AppSettings& settings, const hal::Clock& clock,
+          hal::JobSystem& jobs);
 
   // Advances one frame with the newest tracker sample. Never throws on bad input: a missing,
   // unhealthy or non-finite sample is rejected and the last good pose is used (before any good
@@ -67,6 +73,7 @@ class Session {
   const TissueCase& tissue_;
   config::AppSettings settings_;
   const hal::Clock& clock_;
+  hal::JobSystem& jobs_;
   sim::LinearFem fem_;
   geometry::TetLocator locator_;
   BscanControls controls_;
@@ -74,15 +81,19 @@ class Session {
   imaging::BscanGrid grid_;              // the display raster
   imaging::BscanGrid acquisition_grid_;  // what is sliced: grid_, or scan lines
   imaging::DisplayMapping display_mapping_;
-  std::optional<imaging::ScanConverter> scan_converter_;  // when acquiring along scan lines
-  std::vector<std::uint8_t> acquired_;                    // scan-line samples
-  std::optional<hal::PoseSample> pose_;                   // last good pose
+  std::optional<imaging::ScanConverter> scan_converter_;      // when acquiring along scan lines
+  std::vector<std::uint8_t> acquired_;                        // scan-line samples
+  std::optional<imaging::FastSlicer> fast_slicer_;            // raster grids, slicer = fast
+  std::optional<imaging::PublishedSlicer> published_slicer_;  // raster grids, slicer = published
+  std::optional<hal::PoseSample> pose_;                       // last good pose
   bool in_contact_ = false;
   bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;
   void rebuild_image_pipeline();
+  void slice_in_parallel(const imaging::ProbePose& probe);
   std::vector<float> node_positions_;
   std::vector<float> node_displacement_;
+  DeformedSurfaces structures_;
 };
 
 }  // namespace ultrasim::kiosk

@@ -8,6 +8,7 @@
 #include "ultrasim/config/case_settings.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/imaging/volume.hpp"
+#include "ultrasim/kiosk/display_surfaces.hpp"
 #include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::kiosk {
@@ -27,6 +28,7 @@ struct TissueCase {
   std::vector<sim::Material> tet_materials;  // one per tet, from the label at its centroid
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface
+  std::vector<DisplaySurface> structures;    // vein, artery, nerve, bone, as the 3D view shows them
 };
 
 // Loads case.toml and its volumes, lays the tet grid over the region and assigns materials and
