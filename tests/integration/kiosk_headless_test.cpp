@@ -110,7 +110,7 @@ TEST_F(KioskHeadless, RunsToCompletionAndWritesASaneReport) {
   const std::string json = read_text(out_ / "report.json");
   ASSERT_FALSE(json.empty());
   const double frames = json_number(json, "frames");
-  EXPECT_EQ(frames, 481);  // 8 s script at one frame per 16,667 µs budget, both ends included
+  EXPECT_EQ(frames, 571);  // 9.5 s script at one frame per 16,667 µs budget, both ends included
   EXPECT_EQ(json_number(json, "poses_rejected"), 0);
   const double in_contact = json_number(json, "frames_in_contact");
   EXPECT_GT(in_contact, 0.7 * frames);
@@ -141,6 +141,33 @@ TEST_F(KioskHeadless, ProbeOffTheSkinShowsNoImage) {
   int bright = 0;
   for (auto p : rest.pixels) bright += p > 60;
   EXPECT_GT(bright, 0.2 * rest.pixels.size()) << "the resting probe shows tissue";
+}
+
+// The script's last phase works the scanner's controls: freeze, press while frozen, then unfreeze
+// at 1.5× the depth.
+TEST_F(KioskHeadless, FreezeHoldsTheImageAndDepthShowsDeeper) {
+  ASSERT_EQ(exit_code_, 0);
+  const GreyImage released = read_grey_png(out_ / "bscan-released.png");
+  const GreyImage frozen = read_grey_png(out_ / "bscan-frozen.png");
+  EXPECT_EQ(frozen.pixels, released.pixels) << "a frozen scanner holds its image while pressed";
+  const std::string json = read_text(out_ / "report.json");
+  const std::size_t frozen_at = json.find("\"marker\": \"frozen\"");
+  ASSERT_NE(frozen_at, std::string::npos);
+  EXPECT_GT(json_number(json, "contact_force_n", frozen_at), 1.0) << "the tissue was pressed";
+
+  // 60 mm deep now; the default case's volume ends 45 mm below the skin (probe 0.5 mm in).
+  const GreyImage deeper = read_grey_png(out_ / "bscan-deeper.png");
+  ASSERT_EQ(deeper.height, 512);
+  int tissue_rows = 0, empty_rows = 0;
+  for (int y = 0; y < deeper.height; ++y) {
+    const double z = (y + 0.5) * 60.0 / deeper.height;
+    int lit = 0;
+    for (int x = 0; x < deeper.width; ++x) lit += deeper.at(x, y) > 0;
+    if (z < 40.0) tissue_rows += lit > deeper.width / 2;
+    if (z > 45.5) empty_rows += lit == 0;
+  }
+  EXPECT_GT(tissue_rows, 0.9 * 40.0 / 60.0 * 512) << "tissue down to 4 cm";
+  EXPECT_GT(empty_rows, 0.95 * 14.5 / 60.0 * 512) << "background below the volume";
 }
 
 TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {

@@ -8,6 +8,9 @@ namespace ultrasim::imaging {
 namespace {
 
 std::uint8_t map_grey(std::uint8_t grey, double gain_db, double dynamic_range_db) {
+  // Grey 0 is no echo at all (below the recording's floor, or outside the tissue): no gain
+  // brings it up, so lumens and the background stay black.
+  if (grey == 0) return 0;
   const double level_db = grey * kRecordedDynamicRangeDb / 255.0;
   const double floor_db = kRecordedDynamicRangeDb - dynamic_range_db;
   const double v = 255.0 * (level_db + gain_db - floor_db) / dynamic_range_db;

@@ -16,14 +16,40 @@ namespace ultrasim::kiosk {
 
 namespace {
 
-std::vector<drivers::sim_probe::Keyframe> make_script(const std::string& name,
-                                                      const config::CaseScan& scan) {
+// A change of the scanner's controls at a moment of the script, as a trainee's button press.
+struct ControlEvent {
+  hal::TimestampUs time_us;
+  bool frozen;
+  double depth_mm;
+};
+
+struct Script {
+  std::vector<drivers::sim_probe::Keyframe> keyframes;
+  std::vector<ControlEvent> controls;
+};
+
+// sweep-press: the probe's sweep and press over the case, then the controls: freeze, press again
+// while frozen (the image must hold while the tissue moves), unfreeze at a deeper setting.
+Script make_script(const std::string& name, const config::CaseScan& scan, double depth_mm) {
   if (name != "sweep-press") {
     throw std::invalid_argument("unknown script '" + name + "'; available: sweep-press");
   }
   const Eigen::Vector3d start(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]);
   const Eigen::Vector3d end(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2]);
-  return drivers::sim_probe::sweep_press_script(start, end, scan.press_depth_mm);
+  Script script;
+  script.keyframes = drivers::sim_probe::sweep_press_script(start, end, scan.press_depth_mm);
+  const auto& last = script.keyframes.back();
+  const auto at = [&](double seconds_after) {
+    return last.time_us + static_cast<hal::TimestampUs>(seconds_after * 1e6);
+  };
+  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d pressed = last.position_mm + 0.5 * scan.press_depth_mm * down;
+  script.keyframes.push_back({at(0.5), pressed, last.orientation, ""});
+  script.keyframes.push_back({at(0.75), pressed, last.orientation, "frozen"});
+  script.keyframes.push_back({at(1.0), last.position_mm, last.orientation, ""});
+  script.keyframes.push_back({at(1.5), last.position_mm, last.orientation, "deeper"});
+  script.controls = {{at(0.0), true, depth_mm}, {at(1.0), false, 1.5 * depth_mm}};
+  return script;
 }
 
 }  // namespace
@@ -33,7 +59,9 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   const config::AppSettings settings =
       options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
   const TissueCase tissue = load_tissue_case(options.case_dir);
-  drivers::sim_probe::ScriptedProbe probe(make_script(options.script, tissue.settings.scan));
+  const Script script =
+      make_script(options.script, tissue.settings.scan, tissue.settings.probe.depth_mm);
+  drivers::sim_probe::ScriptedProbe probe(script.keyframes);
 
   render::OffscreenDisplay display(settings.display);
   render::SceneRenderer renderer(display);
@@ -64,12 +92,20 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   for (const auto& k : probe.keyframes())
     if (!k.marker.empty()) markers.emplace_back(k.time_us, k.marker);
   std::size_t next_marker = 0;
+  std::size_t next_control = 0;
   render::RgbaImage screen;
 
   // One frame past the script's end, so its last moment is shown too.
   const std::int64_t frame_count = probe.duration_us() / budget_us + 2;
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
     const hal::TimestampUs now = script_clock.now_us();
+    while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
+      BscanControls controls = session.controls();
+      controls.frozen = script.controls[next_control].frozen;
+      controls.depth_mm = script.controls[next_control].depth_mm;
+      session.set_controls(controls);
+      ++next_control;
+    }
     const hal::TimestampUs start = clock.now_us();
     const FrameOutcome outcome = session.update(probe.latest(now));
     const hal::TimestampUs rendered_from = clock.now_us();

@@ -33,7 +33,8 @@ TEST(DisplayMapping, GainAddsDecibelsOnTheLogCompressedScale) {
   BscanSettings settings;
   settings.gain_db = 6.0;  // 6 dB of 60 dB over 255 grey levels: +25.5 grey levels
   const DisplayMapping mapping(linear_grid(), settings);
-  EXPECT_EQ(mapping.map(0, 10.0), 26);  // the noise floor lifts, as on a scanner
+  EXPECT_EQ(mapping.map(0, 10.0), 0);  // no echo stays black: lumens, background
+  EXPECT_EQ(mapping.map(1, 10.0), 27);
   EXPECT_EQ(mapping.map(100, 10.0), 126);
   EXPECT_EQ(mapping.map(240, 10.0), 255);  // saturates
   settings.gain_db = -60.0 + 20.0;

@@ -14,7 +14,7 @@ namespace ultrasim::imaging {
 // compensation over depth, and dynamic range. Grey levels are log-compressed (0–255 spans
 // kRecordedDynamicRangeDb), so gains add in dB and the dynamic range rescales about the top:
 //   grey_out = 255 · (level_db + gain_db + tgc_db(depth) − (R0 − DR)) / DR,  level_db = grey·R0/255
-// With no gain, no TGC and DR = R0 the mapping is the identity.
+// With no gain, no TGC and DR = R0 the mapping is the identity. Grey 0 (no echo) stays 0.
 class DisplayMapping {
  public:
   // Tabulates the mapping for every pixel of `grid` (its depth below the face: z for linear

@@ -16,8 +16,9 @@ struct HeadlessRunOptions {
   std::string script = "sweep-press";               // the scripted probe's motion
 };
 
-// Runs the kiosk without a screen: a scripted probe plays through the case on a fixed virtual
-// frame clock (one frame per frame budget, so the output is deterministic), every frame is
+// Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's
+// controls: freeze, depth) plays through the case on a fixed virtual
+// frame clock (one frame per frame budget, so the output is deterministic); every frame is
 // simulated, sliced and rendered offscreen, and at each of the script's markers the B-scan and
 // the whole screen are written as PNGs. Writes report.json (frames, frame-time percentiles per
 // stage, deadline misses, contact force) into out_dir. `clock` measures how long work took;
