@@ -6,31 +6,17 @@
 #include <cmath>
 #include <vector>
 
+#include "affine_volume.hpp"
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 
 namespace ultrasim::imaging {
 namespace {
 
-// A volume whose echo is an affine function of position with whole-number values on the voxel
-// grid (1 mm spacing, integer origin), so the stored bytes are exact, trilinear sampling is exact
-// and every pixel's expected grey level is known to within the final rounding (±0.5).
-double affine_echo(const Eigen::Vector3d& p) {
-  return 60.0 + 2.0 * p.x() + p.y() + 3.0 * p.z();
-}
-constexpr double kRounding = 0.5 + 1e-6;
-
-Volume<std::uint8_t> affine_volume() {
-  Volume<std::uint8_t> v({41, 21, 31}, {1.0, 1.0, 1.0}, {-20.0, -10.0, 0.0});
-  for (int k = 0; k < 31; ++k)
-    for (int j = 0; j < 21; ++j)
-      for (int i = 0; i < 41; ++i)
-        v.at(i, j, k) = static_cast<std::uint8_t>(
-            std::lround(affine_echo(v.index_to_world({double(i), double(j), double(k)}))));
-  return v;
-}
+using testing::affine_volume;
+constexpr double kRounding = testing::kRoundingTolerance;
 double expected_echo(const Eigen::Vector3d& p) {
-  return affine_echo(p);
+  return testing::affine_echo(p);
 }
 
 ProbeGeometry small_linear() {

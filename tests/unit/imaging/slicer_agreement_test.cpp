@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "affine_volume.hpp"
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/imaging/bscan.hpp"
@@ -50,20 +51,8 @@ Volume<std::uint8_t> textured_volume(const Eigen::Vector3d& min_mm, const Eigen:
   return v;
 }
 
-// Echo affine in position, whole numbers on the 1 mm voxel grid: trilinear sampling is exact, so
-// every pixel's grey level is known to within the final rounding.
-double affine_echo(const Eigen::Vector3d& p) {
-  return 60.0 + 2.0 * p.x() + p.y() + 3.0 * p.z();
-}
-Volume<std::uint8_t> affine_volume() {
-  Volume<std::uint8_t> v({41, 21, 31}, {1.0, 1.0, 1.0}, kMeshMin);
-  for (int k = 0; k < 31; ++k)
-    for (int j = 0; j < 21; ++j)
-      for (int i = 0; i < 41; ++i)
-        v.at(i, j, k) = static_cast<std::uint8_t>(
-            std::lround(affine_echo(v.index_to_world({double(i), double(j), double(k)}))));
-  return v;
-}
+using testing::affine_echo;
+using testing::affine_volume;
 
 Eigen::Matrix3d random_rotation(std::mt19937& rng) {
   std::normal_distribution<double> normal;
