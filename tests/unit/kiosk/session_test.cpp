@@ -197,6 +197,33 @@ TEST_F(SessionTest, EverySlicerShowsTheSameImage) {
       ASSERT_LE(std::abs(images[m][i] - images[0][i]), 1) << "method " << m << " pixel " << i;
 }
 
+TEST(SessionConvex, EverySlicerShowsTheSameSectorImage) {
+  const testing::TinyCase files(testing::tiny_case_toml(
+      "[\"z_max\"]", true,
+      "kind = \"convex\"\nradius_mm = 12.0\nfan_angle_deg = 70.0\ndepth_mm = 16.0\n"));
+  const TissueCase tissue = load_tissue_case(files.dir());
+  hal::ManualClock clock;
+  hal::InlineJobSystem jobs;
+  std::vector<std::vector<std::uint8_t>> images;
+  for (auto method : {imaging::SlicerMethod::kReference, imaging::SlicerMethod::kFast,
+                      imaging::SlicerMethod::kPublished}) {
+    config::AppSettings s;
+    s.bscan.width_px = s.bscan.height_px = 64;
+    s.bscan.slicer = method;
+    Session session(tissue, s, clock, jobs);
+    for (int f = 0; f < 6; ++f) session.update(pose_at(0.3 * f));
+    ASSERT_TRUE(session.in_contact());
+    images.emplace_back(session.bscan().begin(), session.bscan().end());
+  }
+  // The sector: its top corners are outside the fan, its axis shows tissue.
+  EXPECT_EQ(images[0][0], 0);
+  EXPECT_EQ(images[0][63], 0);
+  EXPECT_GT(images[0][60 * 64 + 32], 30);  // 15 mm deep, below the vein
+  for (std::size_t m = 1; m < images.size(); ++m)
+    for (std::size_t i = 0; i < images[0].size(); ++i)
+      ASSERT_LE(std::abs(images[m][i] - images[0][i]), 1) << "method " << m << " pixel " << i;
+}
+
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
   Session session(tissue_, settings_, clock_, jobs_);
   const BscanControls before = session.controls();

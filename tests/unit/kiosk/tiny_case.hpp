@@ -12,7 +12,8 @@
 namespace ultrasim::kiosk::testing {
 
 inline std::string tiny_case_toml(const std::string& fixed_faces = "[\"z_max\"]",
-                                  bool with_vein_material = true) {
+                                  bool with_vein_material = true,
+                                  const std::string& probe = "width_mm = 16.0\ndepth_mm = 16.0\n") {
   std::string toml = R"([case]
 name = "tiny"
 volume = "volume.mha"
@@ -39,9 +40,8 @@ poisson_ratio = 0.05
   }
   toml += R"(
 [probe]
-width_mm = 16.0
-depth_mm = 16.0
-
+)" + probe +
+          R"(
 [scan]
 start_mm = [0.0, -5.0, 0.0]
 end_mm = [0.0, 5.0, 0.0]
