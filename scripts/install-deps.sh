@@ -12,6 +12,8 @@ packages=(
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # reference FEM solver for the accuracy tests (DESIGN.md §4)
+  calculix-ccx
 )
 
 missing=()
