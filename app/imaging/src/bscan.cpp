@@ -128,8 +128,8 @@ void ScanConverter::apply_rows(std::span<const std::uint8_t> lines_image,
   }
 }
 
-std::uint8_t apply_gain(float echo, double gain_db) {
-  const double v = std::round(echo * std::pow(10.0, gain_db / 20.0));
+std::uint8_t echo_to_grey(float echo) {
+  const double v = std::round(echo);
   return static_cast<std::uint8_t>(std::clamp(v, 0.0, 255.0));
 }
 
@@ -142,7 +142,7 @@ void slice_undeformed(const Volume<std::uint8_t>& volume, const ProbePose& pose,
       std::uint8_t& pixel = out[static_cast<std::size_t>(row) * grid.width_px() + col];
       const auto plane = grid.pixel_to_plane_mm(col, row);
       const float echo = plane ? volume.sample_trilinear(pose.to_patient(*plane), -1.0f) : -1.0f;
-      pixel = echo < 0 ? background : apply_gain(echo, settings.gain_db);
+      pixel = echo < 0 ? background : echo_to_grey(echo);
     }
   }
 }
@@ -165,7 +165,7 @@ void slice_deformed_reference(const Volume<std::uint8_t>& volume, const geometry
       Eigen::Vector3d undeformed = Eigen::Vector3d::Zero();
       for (int c = 0; c < 4; ++c) undeformed += location->barycentric[c] * rest[tet[c]];
       const float echo = volume.sample_trilinear(undeformed, -1.0f);
-      if (echo >= 0) pixel = apply_gain(echo, settings.gain_db);
+      if (echo >= 0) pixel = echo_to_grey(echo);
     }
   }
 }

@@ -76,7 +76,6 @@ struct FastSlicer::Sampler {
   std::ptrdiff_t stride_y, stride_z;      // voxels per index step in j and k
   std::ptrdiff_t step_x, step_y, step_z;  // neighbour offsets (0 along a one-voxel axis)
   int max_i, max_j, max_k;                // largest lower corner of a trilinear cell
-  double gain;                            // linear factor of settings.gain_db
   std::uint8_t background;                // settings.background_grey
 };
 
@@ -95,7 +94,6 @@ void sample_span(const VolumeSampler& s, const Eigen::Vector3d& index_at_col0,
   const std::ptrdiff_t stride_y = s.stride_y, stride_z = s.stride_z;
   const std::ptrdiff_t step_x = s.step_x, step_y = s.step_y, step_z = s.step_z;
   const int max_i = s.max_i, max_j = s.max_j, max_k = s.max_k;
-  const double gain = s.gain;
   const double x0 = index_at_col0.x(), y0 = index_at_col0.y(), z0 = index_at_col0.z();
   const double dx = step.x(), dy = step.y(), dz = step.z();
   // Stepped rather than recomputed per pixel: the drift over a row (~1e-11 voxel) is far inside
@@ -119,8 +117,8 @@ void sample_span(const VolumeSampler& s, const Eigen::Vector3d& index_at_col0,
     const double c11 = q[step_y] + (q[step_y + step_x] - q[step_y]) * fx;
     const double c0 = c00 + (c10 - c00) * fy;
     const double c1 = c01 + (c11 - c01) * fy;
-    // Rounded to the nearest grey level and clamped, as apply_gain does.
-    const double grey = std::min(std::max((c0 + (c1 - c0) * fz) * gain + 0.5, 0.0), 255.0);
+    // Rounded to the nearest grey level and clamped, as echo_to_grey does.
+    const double grey = std::min(std::max(c0 + (c1 - c0) * fz + 0.5, 0.0), 255.0);
     out[col] = static_cast<std::uint8_t>(grey);
   }
 }
@@ -380,7 +378,6 @@ void FastSlicer::slice_rows(const BscanSettings& settings, int row_begin, int ro
   sampler.max_i = std::max(n.x() - 2, 0);
   sampler.max_j = std::max(n.y() - 2, 0);
   sampler.max_k = std::max(n.z() - 2, 0);
-  sampler.gain = std::pow(10.0, settings.gain_db / 20.0);
   sampler.background = static_cast<std::uint8_t>(settings.background_grey);
 
   for (int band = row_begin / kBandRows; band <= (row_end - 1) / kBandRows; ++band) {

@@ -28,7 +28,6 @@ struct PublishedSlicer::RowContext {
   int row;
   std::span<const std::int32_t> region_tets;
   std::span<std::uint8_t> out;  // the row's pixels
-  double gain;                  // linear factor of settings.gain_db
 };
 
 PublishedSlicer::PublishedSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid,
@@ -151,7 +150,6 @@ void PublishedSlicer::slice_rows(const BscanSettings& settings, int row_begin, i
   }
   row_begin = std::max(row_begin, 0);
   row_end = std::min(row_end, height_px_);
-  const double gain = std::pow(10.0, settings.gain_db / 20.0);
   for (int row = row_begin; row < row_end; ++row) {
     const auto row_out = out.subspan(static_cast<std::size_t>(row) * width_px_, width_px_);
     std::ranges::fill(row_out, static_cast<std::uint8_t>(settings.background_grey));
@@ -161,7 +159,7 @@ void PublishedSlicer::slice_rows(const BscanSettings& settings, int row_begin, i
         row,
         std::span<const std::int32_t>(region_tets_)
             .subspan(region_start_[m], region_start_[m + 1] - region_start_[m]),
-        row_out, gain};
+        row_out};
     for (const PixelRun& run : row_runs_->row(row)) {
       const int a = run.col_begin, z = run.col_end - 1;
       const Location at_a = locate(context, a);
@@ -216,8 +214,7 @@ void PublishedSlicer::shade(const RowContext& row, int col, const Eigen::Vector3
   // As slice_deformed_reference: rest positions outside the volume keep the background.
   const float echo = volume_->sample_trilinear(rest_mm, -1.0f);
   if (echo < 0) return;
-  const double grey = std::round(echo * row.gain);
-  row.out[col] = static_cast<std::uint8_t>(std::clamp(grey, 0.0, 255.0));
+  row.out[col] = echo_to_grey(echo);
 }
 
 }  // namespace ultrasim::imaging

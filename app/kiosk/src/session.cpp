@@ -123,13 +123,10 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
     if (fast_slicer_ || published_slicer_) {
       slice_in_parallel(probe);
     } else {
-      // Slice the echo as recorded; the display controls are applied after, in dB.
-      imaging::BscanSettings echo_only = settings_.bscan;
-      echo_only.gain_db = 0.0;
       locator_.rebuild(deformed);
       auto& target = scan_converter_ ? acquired_ : bscan_;
       imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe,
-                                        acquisition_grid_, echo_only, target);
+                                        acquisition_grid_, settings_.bscan, target);
       display_mapping_.apply(target);
       if (scan_converter_) scan_converter_->apply(acquired_, bscan_);
     }
@@ -165,17 +162,15 @@ void Session::slice_in_parallel(const imaging::ProbePose& probe) {
   }
   // Bands of rows from a shared counter: rows below the tissue cost little, so small bands
   // keep both threads busy. Each band is sliced and then mapped while it is in cache.
-  imaging::BscanSettings echo_only = settings_.bscan;
-  echo_only.gain_db = 0.0;
   constexpr int kBandRows = 16;
   const int rows = grid_.height_px();
   const int bands = (rows + kBandRows - 1) / kBandRows;
   hal::parallel_for(jobs_, bands, [&](int band) {
     const int begin = band * kBandRows, end = std::min(rows, begin + kBandRows);
     if (fast_slicer_) {
-      fast_slicer_->slice_rows(echo_only, begin, end, bscan_);
+      fast_slicer_->slice_rows(settings_.bscan, begin, end, bscan_);
     } else {
-      published_slicer_->slice_rows(echo_only, begin, end, bscan_);
+      published_slicer_->slice_rows(settings_.bscan, begin, end, bscan_);
     }
     display_mapping_.apply_rows(bscan_, begin, end);
   });

@@ -58,11 +58,12 @@ TEST(BscanGrid, ConvexSectorMasksPixelsOutsideTheFan) {
   EXPECT_NEAR(inside / 40000.0, sector / (e.width_mm() * e.depth_mm()), 0.01);
 }
 
-TEST(Gain, ScalesInDecibelsAndClamps) {
-  EXPECT_EQ(apply_gain(100.0f, 0.0), 100);
-  EXPECT_EQ(apply_gain(100.0f, 20.0 * std::log10(2.0)), 200);
-  EXPECT_EQ(apply_gain(200.0f, 6.0), 255);
-  EXPECT_EQ(apply_gain(-5.0f, 0.0), 0);
+TEST(EchoToGrey, RoundsAndClamps) {
+  EXPECT_EQ(echo_to_grey(100.0f), 100);
+  EXPECT_EQ(echo_to_grey(100.4f), 100);
+  EXPECT_EQ(echo_to_grey(100.6f), 101);
+  EXPECT_EQ(echo_to_grey(300.0f), 255);
+  EXPECT_EQ(echo_to_grey(-5.0f), 0);
 }
 
 TEST(SliceUndeformed, MatchesTheAnalyticVolumeAndShowsBackgroundOutside) {

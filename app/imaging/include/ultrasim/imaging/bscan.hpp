@@ -90,8 +90,9 @@ class ScanConverter {
   std::vector<Tap> taps_;
 };
 
-// Echo level → displayed grey level: gain in dB, rounded, clamped to [0, 255].
-std::uint8_t apply_gain(float echo, double gain_db);
+// A sampled echo level as a grey level: rounded, clamped to [0, 255]. Slicers output the echo as
+// recorded; the display controls (gain, TGC, dynamic range) are DisplayMapping's, applied after.
+std::uint8_t echo_to_grey(float echo);
 
 // B-scan of the undeformed volume: trilinear samples on the probe plane. `out` holds
 // width_px × height_px bytes, row-major. Does not allocate.

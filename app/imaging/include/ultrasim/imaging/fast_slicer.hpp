@@ -80,10 +80,10 @@ class FastSlicer {
   // Writes rows [row_begin, row_end) of the image; `out` is the whole image, width_px ×
   // height_px bytes, row-major, and only those rows are touched. Pixels outside the sector (convex
   // grids), the deformed mesh or the volume get settings.background_grey; the others the volume
-  // echo at the pixel's rest position with settings.gain_db (settings.width_px/height_px are
-  // ignored: the grid sets the size). Safe to call from several threads at once on disjoint row
-  // ranges after prepare(). Does not allocate; std::invalid_argument when `out` is smaller than the
-  // image.
+  // echo at the pixel's rest position, as recorded (display controls come after, in
+  // DisplayMapping; settings.width_px/height_px are ignored: the grid sets the size). Safe to call
+  // from several threads at once on disjoint row ranges after prepare(). Does not allocate;
+  // std::invalid_argument when `out` is smaller than the image.
   void slice_rows(const BscanSettings& settings, int row_begin, int row_end,
                   std::span<std::uint8_t> out) const;
 
