@@ -78,10 +78,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.pcg_iterations_per_frame = settings.fem.pcg_iterations_per_frame;
   report.threads = jobs.thread_count();
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
-  report.slicer = settings.bscan.scan_lines > 0                           ? "reference (scan lines)"
-                  : settings.bscan.slicer == imaging::SlicerMethod::kFast ? "fast"
-                  : settings.bscan.slicer == imaging::SlicerMethod::kPublished ? "published"
-                                                                               : "reference";
+  report.slicer = session.slicer_name();
   const std::int64_t budget_us = settings.frame.budget_us;
   report.frame = sched::FrameTimeStats(budget_us);
 

@@ -67,6 +67,13 @@ class Session {
   int bscan_width_px() const { return grid_.width_px(); }
   int bscan_height_px() const { return grid_.height_px(); }
   bool in_contact() const { return in_contact_; }
+  // The slicer in use: the configured one, or the reference when acquiring along scan lines.
+  const char* slicer_name() const {
+    return fast_slicer_        ? "fast"
+           : published_slicer_ ? "published"
+           : scan_converter_   ? "reference (scan lines)"
+                               : "reference";
+  }
   const TissueCase& tissue() const { return tissue_; }
 
  private:
