@@ -7,36 +7,20 @@
 #include <stdexcept>
 #include <string>
 
+#include "block_fixture.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
 namespace ultrasim::sim {
 namespace {
 
-using geometry::GridSpec;
-using geometry::TetMesh;
+using testing::Block;
 
-struct Block {
-  TetMesh mesh;
-  std::vector<Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
-
-// A block 40 × 20 × 20 mm, skin at z = 0, fixed on its deepest face (z = 20); two materials
-// (softer upper half) so a material mix-up would show.
+// Two materials (softer upper half) so a material mix-up would show.
 Block make_block(Eigen::Vector3i nodes = {9, 5, 5}) {
-  Block b;
-  b.mesh = geometry::make_grid_tet_mesh(
-      GridSpec::spanning(Eigen::Vector3d(-20, -10, 0), Eigen::Vector3d(20, 10, 20), nodes));
-  const auto& p = b.mesh.rest_positions_mm;
-  for (const auto& t : b.mesh.tets) {
-    const double z = (p[t[0]] + p[t[1]] + p[t[2]] + p[t[3]]).z() / 4.0;
-    b.materials.push_back(z < 10.0 ? Material{1, "fat", 20.0, 0.45}
-                                   : Material{2, "muscle", 60.0, 0.4});
-  }
-  b.fixed.assign(p.size(), 0);
-  for (int n = 0; n < b.mesh.node_count(); ++n) b.fixed[n] = p[n].z() == 20.0;
-  return b;
+  return testing::make_block(nodes, [](const Eigen::Vector3d& centroid) {
+    return centroid.z() < 10.0 ? Material{1, "fat", 20.0, 0.45} : Material{2, "muscle", 60.0, 0.4};
+  });
 }
 
 // The reference: eliminate the held DOFs (and fixed ones), factor the rest afresh, solve.

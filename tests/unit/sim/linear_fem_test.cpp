@@ -6,30 +6,19 @@
 #include <Eigen/Geometry>
 #include <random>
 
+#include "block_fixture.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 
 namespace ultrasim::sim {
 namespace {
 
-using geometry::GridSpec;
-using geometry::TetMesh;
+using testing::Block;
 
-struct Block {
-  TetMesh mesh;
-  std::vector<Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
-
-// A soft block 40 × 20 × 20 mm, skin at z = 0, fixed on its deepest face (z = 20).
+// One soft material throughout.
 Block make_block(double e_kpa = 30.0, double nu = 0.45, Eigen::Vector3i nodes = {9, 5, 5}) {
-  Block b;
-  b.mesh = geometry::make_grid_tet_mesh(
-      GridSpec::spanning(Eigen::Vector3d(-20, -10, 0), Eigen::Vector3d(20, 10, 20), nodes));
-  b.materials.assign(b.mesh.tets.size(), Material{1, "tissue", e_kpa, nu});
-  b.fixed.assign(b.mesh.rest_positions_mm.size(), 0);
-  for (int n = 0; n < b.mesh.node_count(); ++n)
-    b.fixed[n] = b.mesh.rest_positions_mm[n].z() == 20.0;
-  return b;
+  return testing::make_block(nodes, [&](const Eigen::Vector3d&) {
+    return Material{1, "tissue", e_kpa, nu};
+  });
 }
 
 TEST(TetStiffness, IsSymmetricWithSixRigidBodyModes) {
