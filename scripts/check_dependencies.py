@@ -41,7 +41,9 @@ ALLOWED = {
     "drivers": {"hal"},
     "render": {"hal"},
     "geometry": set(),
-    "sim": {"geometry"},
+    # app/sim is handed worker threads as a hal::JobSystem (DESIGN §3: "a job system is
+    # injected"); it may include that one hal header and nothing else of hal (checked per header).
+    "sim": {"geometry", "hal"},
     "imaging": {"geometry"},
     "tracking": {"hal"},
     "sched": {"hal"},
@@ -66,6 +68,7 @@ OS_CLOCK_TOKEN = re.compile(
     r"\b(steady_clock|system_clock|high_resolution_clock|utc_clock|tai_clock|gps_clock|"
     r"clock_gettime|gettimeofday)\b")
 # app/sim: no I/O and no threads of its own (a job system is injected).
+SIM_HAL_HEADERS = {"ultrasim/hal/job_system.hpp"}
 SIM_FORBIDDEN_HEADERS = {"fstream", "iostream", "cstdio", "stdio.h", "thread", "future",
                          "filesystem"}
 
@@ -304,6 +307,10 @@ def check_file(path: Path, source: Path, report: Report) -> None:
                                f"{spelled}: config may include only the settings headers "
                                f"(settings.hpp, *_settings.hpp) of "
                                f"{', '.join(sorted(SETTINGS_OWNERS))}")
+            elif kind(module) == "sim" and target == "hal" and inc.name not in SIM_HAL_HEADERS:
+                report.add(rel_text, inc.line,
+                           f"{spelled}: app/sim may include only {', '.join(sorted(SIM_HAL_HEADERS))}"
+                           f" of hal (the injected job system)")
             elif not edge_allowed(module, target):
                 report.add(rel_text, inc.line, f"{spelled}: {edge_rule(module, target)}")
             continue
@@ -521,6 +528,8 @@ def self_test() -> int:
         "render/src/r.cpp": '#include "ultrasim/tools/x.hpp"\n',
         "app/kiosk/src/bad.cpp": '#include "fakes/fake_clock.hpp"\n',
         "app/sim/src/io.cpp": "#include <fstream>\n",
+        "app/sim/src/jobs.cpp": ('#include "ultrasim/hal/job_system.hpp"\n'
+                                 '#include "ultrasim/hal/clock.hpp"\n'),
         "app/tracking/src/t.cpp": '#include "../../sim/src/io.cpp"\n',
         "app/sim/CMakeLists.txt": "ultrasim_add_library(sim PUBLIC_DEPS ultrasim::render)\n",
     }
@@ -561,6 +570,7 @@ def self_test() -> int:
         ("render/src/r.cpp", 1, '"ultrasim/tools/x.hpp": nothing may depend on app/tools'),
         ("app/kiosk/src/bad.cpp", 1, '"fakes/fake_clock.hpp": nothing outside tests/ may depend'),
         ("app/sim/src/io.cpp", 1, "<fstream>: app/sim does no I/O and starts no threads"),
+        ("app/sim/src/jobs.cpp", 2, "app/sim may include only ultrasim/hal/job_system.hpp"),
         ("app/tracking/src/t.cpp", 1, '"../../sim/src/io.cpp": tracking may depend on hal'),
         ("app/sim/CMakeLists.txt", 1, "ultrasim_sim links ultrasim_render: sim may depend on"),
         ("app/tools/CMakeLists.txt", 1, "ultrasim-make-case links ultrasim_kiosk: tools may"),

@@ -8,6 +8,9 @@ packages=(
   build-essential cmake ninja-build pkg-config git python3 clang-format
   # libraries (DESIGN.md §4)
   libeigen3-dev zlib1g-dev libpng-dev libtomlplusplus-dev libcli11-dev
+  # sparse Cholesky (CHOLMOD) for the exact FEM, on single-threaded OpenBLAS: the serial build
+  # starts no threads of its own and is as fast on one core as the threaded one
+  libsuitesparse-dev libopenblas0-serial
   # headless EGL + GLES on Mesa's software rasteriser (libgl1-mesa-dri holds swrast/llvmpipe)
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
   # tests and benchmarks

@@ -75,7 +75,7 @@ TEST(CalculixComparison, NodalLoadsOnTheFreeEnd) {
     problem.loads.push_back({b.end_face[i], force_mn});
     fem.set_nodal_load(b.end_face[i], force_mn);
   }
-  const auto stats = fem.solve({});
+  const auto stats = fem.solve(std::span<const PrescribedNode>{});
   EXPECT_EQ(stats.contact_nodes, 0);
   const auto reference = solve_with_calculix(problem);
   const double err = relative_max_error(fem, reference);

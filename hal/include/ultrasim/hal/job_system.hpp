@@ -1,5 +1,6 @@
 #pragma once
 
+#include <type_traits>
 #include <utility>
 
 namespace ultrasim::hal {
@@ -23,8 +24,9 @@ class JobSystem {
 // parallel_for(jobs, n, [&](int i) { ... }): the same with a lambda, without allocating.
 template <typename F>
 void parallel_for(JobSystem& jobs, int task_count, F&& f) {
+  using Task = std::remove_reference_t<F>;  // F is an lvalue reference for a named lambda
   jobs.run(
-      task_count, [](void* context, int index) { (*static_cast<F*>(context))(index); },
+      task_count, [](void* context, int index) { (*static_cast<Task*>(context))(index); },
       const_cast<void*>(static_cast<const void*>(&f)));
 }
 

@@ -2,15 +2,18 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/contact.hpp"
+#include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/settings.hpp"
-#include "ultrasim/sim/sphere_collider.hpp"
 
 namespace ultrasim::sim {
 
@@ -20,47 +23,86 @@ struct PrescribedNode {
   Eigen::Vector3d displacement_mm = Eigen::Vector3d::Zero();
 };
 
-struct ExactFemSettings {
-  // Nodes whose K⁻¹ columns (3 each, one per axis, free-DOF length) are kept between frames. A node
-  // that stays in contact reuses its columns; one that comes into contact costs 3 solves with the
-  // factor. Memory: 24 bytes × free DOFs per node (≈ 0.6 MB at 32×16×16). Nodes in the current
-  // frame's set are never evicted, so the cache may exceed this while more nodes are in contact.
-  int max_cached_nodes = 256;
+// One node kept on a plane this frame: normal · u = displacement_mm, free to slide along the
+// plane (frictionless contact: the probe pushes along its surface normal only).
+struct NormalConstraint {
+  int node = 0;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+  double displacement_mm = 0.0;
 };
 
-// What one solve did. Counters, not clocks (app/sim reads no clock): the costly work is
-// factorisations (once, at construction) and triangular solves with the factor.
+// How the probe holds the nodes it touches.
+enum class ContactModel {
+  // Gel-lubricated skin: the probe pushes along its surface normal and never pulls; nodes slide
+  // along the face. Solved exactly by an active set within the frame (Hertz's assumption).
+  kFrictionless,
+  // The published collider: a node inside the probe is held at its push-out point, all three
+  // axes, as long as it stays inside (what the PCG FEM does; use it to compare the two).
+  kStick,
+};
+
+struct ExactFemSettings {
+  ContactModel contact = ContactModel::kFrictionless;
+  // Active-set rounds per frame for frictionless contact (release pulling nodes, add
+  // penetrating ones). The set from the last frame is the start, so a moving probe needs 1-3.
+  int max_contact_rounds = 8;
+  // Nodes not among the contact candidates whose K⁻¹ columns (3 each, free-DOF length, double)
+  // are kept between frames; one that comes into contact costs 3 solves with the factor. Nodes in
+  // the current frame's set are never evicted, so the cache may exceed this meanwhile.
+  int max_cached_nodes = 256;
+  // A linear model pressed hard inverts a few tets under the probe's rim long before the answer
+  // is useless; a probe pushed through the tissue inverts many. Above this fraction of all tets
+  // the frame is rejected and the last good shape kept; below, the count is only reported.
+  double max_inverted_fraction = 0.005;
+};
+
+// What one solve did. Counters, not clocks (app/sim reads no clock): the costly work is the
+// factorisation and Green's functions (once, at construction) and solves with the factor.
 struct ExactFemStepStats {
-  int contact_nodes = 0;         // nodes prescribed this frame (fixed nodes are not counted)
-  double contact_force_n = 0.0;  // |sum of reaction forces on the prescribed nodes|, newtons
+  int contact_nodes = 0;         // nodes constrained this frame (fixed nodes are not counted)
+  double contact_force_n = 0.0;  // |sum of the constraint forces|, newtons
   int columns_computed = 0;      // K⁻¹ columns solved for this frame (3 per newly held node)
-  int columns_reused = 0;        // K⁻¹ columns taken from the cache
+  int columns_reused = 0;        // K⁻¹ columns taken from the precomputed or cached ones
   int load_solves = 0;           // solves for the nodal loads (1 after loads change, else 0)
-  int condensed_size = 0;        // size of the dense capacitance system, 3 × contact_nodes
+  int condensed_size = 0;        // size of the dense capacitance system (constraint rows)
+  int contact_rounds = 0;        // active-set rounds (frictionless probe contact), else 1
 };
 
 // Exact quasi-static linear FEM: the same model as LinearFem (linear tets, Cauchy strain,
 // isotropic materials; K in kPa·mm so K u is in mN) solved exactly instead of by a few CG steps.
 //
-// The stiffness restricted to the free DOFs (all but fixed nodes) is factored once, at
-// construction, with a sparse LDLᵀ (Eigen::SimplicialLDLT, AMD ordering). Nodes held at a
-// displacement change every frame (probe contact), so they are not eliminated from the factor;
-// they are imposed by condensation onto the held DOFs instead (capacitance matrix / Schur
-// complement of the Lagrange-multiplier system):
+// The stiffness on the free DOFs (all but fixed nodes) is factored once, at construction, by
+// CHOLMOD's supernodal Cholesky. Probe contacts change every frame, so they are not eliminated
+// from the factor; they are imposed by condensation (the capacitance-matrix method of James & Pai,
+// ArtDefo, 1999): with constraint rows Eᵀ u = d,
 //   u = K⁻¹ f + Z λ,  Z = K⁻¹ E,  (Eᵀ Z) λ = d − Eᵀ K⁻¹ f,
-// where E selects the held DOFs, d their displacements and λ their reaction forces (mN). Z's
-// columns are cached per node, so a node that stays in contact costs nothing; the dense system is
-// 3·held × 3·held. The result equals a direct solve with the held DOFs eliminated, to rounding.
+// λ being the constraint forces (mN). Each row is one direction at one node (three axes for a
+// held node, the probe's normal for a frictionless contact), so Z is a combination of the node's
+// three K⁻¹ columns, its Green's functions.
 //
-// Single-threaded. Construction allocates; solve() allocates when a node's columns enter the
-// cache and when the number of held nodes changes (the dense capacitance system is resized).
-class ExactFem {
+// The Green's functions of the contact candidates (the skin the probe can reach) are computed at
+// construction: the field part in float (n_free × 3 per node; 4 bytes × free DOFs × 3 per node,
+// ≈ 0.8 MB per skin node at 32×16×16 nodes), the part on the candidates themselves in double, so
+// the capacitance system is exact in double and the field is exact to float rounding (≈ 1e-7
+// relative). A frame then costs no solve: a small dense Cholesky and one pass over the touched
+// nodes' columns. Other nodes get their columns from the factor the first time they are held
+// (3 solves) and keep them in a least-recently-used cache.
+//
+// step() allocates only when the contact set outgrows anything seen before (dense system size)
+// or a non-candidate node's columns enter the cache.
+class ExactFem final : public DeformationEngine {
  public:
-  // tet_materials: one per tet; fixed_nodes: one flag per node (nonzero = fixed at zero).
+  // tet_materials: one per tet; fixed_nodes: one flag per node (nonzero = fixed at zero);
+  // contact_candidates: empty, or one flag per node (nonzero = precompute its Green's functions).
+  // `jobs`, if given, must outlive the engine; it splits the per-frame field update.
   // Throws std::invalid_argument when no node is fixed ("... singular ..."), a tet has no positive
-  // volume, a material is out of range, or the factorisation fails (stiffness singular).
+  // volume, a material or setting is out of range, or the stiffness is not positive definite.
   ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
-           std::span<const std::uint8_t> fixed_nodes, const ExactFemSettings& settings = {});
+           std::span<const std::uint8_t> fixed_nodes, const ExactFemSettings& settings = {},
+           std::span<const std::uint8_t> contact_candidates = {}, hal::JobSystem* jobs = nullptr);
+  ~ExactFem() override;
+  ExactFem(const ExactFem&) = delete;
+  ExactFem& operator=(const ExactFem&) = delete;
 
   // External force on a node, mN, applied from the next solve on; ignored on fixed nodes.
   void set_nodal_load(int node, const Eigen::Vector3d& force_mn);
@@ -71,17 +113,31 @@ class ExactFem {
   // Throws std::out_of_range for a node outside the mesh, std::invalid_argument when the dense
   // system is not positive definite (a node listed twice).
   ExactFemStepStats solve(std::span<const PrescribedNode> held);
+  // The same with frictionless plane constraints (one row per node; nodes distinct).
+  ExactFemStepStats solve(std::span<const NormalConstraint> constraints);
 
-  // The published sphere collider, exact: nodes inside the sphere at their last deformed position
-  // are held at their radial projection onto its surface, then solve().
-  ExactFemStepStats step(const SphereCollider& collider);
+  // DeformationEngine: the probe's contact solved exactly with the configured contact model.
+  // frame_dt_s is ignored (quasi-static). A probe pressed so deep that more than
+  // max_inverted_fraction of the tets invert keeps the last good shape and reports diverged.
+  EngineKind kind() const override { return EngineKind::kExactFem; }
+  std::string_view name() const override { return "exact FEM"; }
+  EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  const Eigen::VectorXd& displacements_mm() const override { return u_; }
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
+  // Quasi-static: the next step() solves from scratch; this only sets the shape shown and the
+  // positions the next contact search starts from.
+  void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
+
+  // Nodes the last solve constrained (held, or in contact with the probe).
+  std::span<const int> constrained_nodes() const { return row_nodes_; }
+
+  // The last solve's counters (step() fills them too).
+  const ExactFemStepStats& last_solve_stats() const { return last_stats_; }
 
   Eigen::Vector3d displacement_mm(int node) const { return u_.segment<3>(3 * node); }
-  // Whole displacement vector, node-major x,y,z, mm.
-  const Eigen::VectorXd& displacements_mm() const { return u_; }
-  // Reaction force on a held node from the last solve, mN (zero for free nodes).
+  // Force the constraints or supports exert on a node in the last solve (K u − f), mN: ~0 for
+  // free nodes.
   Eigen::Vector3d reaction_force_mn(int node) const;
-  std::span<const Eigen::Vector3d> deformed_positions_mm() const { return deformed_; }
 
   const Eigen::SparseMatrix<double, Eigen::RowMajor>& stiffness() const { return stiffness_; }
   int node_count() const { return static_cast<int>(rest_.size()); }
@@ -89,19 +145,47 @@ class ExactFem {
   int factorization_count() const { return factorizations_; }
   long long total_columns_computed() const { return total_columns_computed_; }
   int cached_nodes() const { return static_cast<int>(cache_slot_node_.size()); }
+  int contact_candidate_count() const { return static_cast<int>(candidate_nodes_.size()); }
 
  private:
-  // Cache slot holding node's 3 columns of K_ff⁻¹ (computing them if missing).
-  int columns_for(int node, ExactFemStepStats& stats);
+  struct Factor;  // CHOLMOD, kept out of the header
+  // One constraint row: direction at a node, target value.
+  struct Row {
+    int node;
+    Eigen::Vector3d direction;
+    double value_mm;
+  };
+
+  void precompute_candidates(std::span<const std::uint8_t> contact_candidates);
+  void refresh_load_response(ExactFemStepStats& stats);
+  // Makes sure `node` has Green's functions available (precomputed or cached).
+  void ensure_columns(int node, ExactFemStepStats& stats);
+  // 3×3 block of K_ff⁻¹: rows at node a's DOFs, columns at node b's.
+  Eigen::Matrix3d green_block(int a, int b) const;
+  // Which displacements a solve updates: all, or only the skin (contact candidates) and the
+  // constrained nodes, which is all a contact round looks at.
+  enum class Field { kWhole, kSkin };
+  // Solves the capacitance system for rows_ and fills the per-node constraint forces and the
+  // displacements of `field`.
+  ExactFemStepStats solve_rows(Field field);
+  void update_whole_field();
+  void update_skin_field();
+  void accumulate_field();
+  EngineStepStats step_frictionless(const ProbeCollider& probe);
+  // One round of the frictionless active set on rows_; true when the set or a plane changed.
+  bool update_active_set(const ProbeCollider& probe, bool skin_only);
   void update_deformed();
+  int count_inverted_tets() const;
 
   ExactFemSettings settings_;
+  hal::JobSystem* jobs_ = nullptr;
   std::vector<Eigen::Vector3d> rest_;
+  std::vector<std::array<std::int32_t, 4>> tets_;
   std::vector<std::uint8_t> fixed_;
   Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness_;
   std::vector<int> global_to_free_;  // DOF → free index, −1 for fixed DOFs
   std::vector<int> free_to_global_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> factor_;
+  std::unique_ptr<Factor> factor_;
   int factorizations_ = 0;
   long long total_columns_computed_ = 0;
 
@@ -109,23 +193,34 @@ class ExactFem {
   Eigen::VectorXd load_response_;  // K_ff⁻¹ f on free DOFs
   bool loads_dirty_ = false;
 
-  // Column cache: slot s holds node cache_slot_node_[s]'s columns; node_slot_[n] is n's slot or −1.
+  // Precomputed Green's functions of the contact candidates.
+  std::vector<int> candidate_nodes_;
+  std::vector<int> candidate_slot_;       // per node: index in candidate_nodes_, or −1
+  Eigen::MatrixXf candidate_green_;       // n_free × 3·candidates
+  Eigen::MatrixXd candidate_compliance_;  // 3·candidates × 3·candidates (double)
+
+  // Least-recently-used cache of other nodes' columns (double).
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3>> cache_columns_;
   std::vector<int> cache_slot_node_;
   std::vector<int> node_slot_;
-  std::vector<int> last_use_;  // per slot, frame counter of last use (evict least recent)
+  std::vector<int> last_use_;
   int frame_ = 0;
 
-  // Per-frame scratch.
-  std::vector<int> held_nodes_;
-  std::vector<int> held_slots_;
-  std::vector<PrescribedNode> contact_scratch_;
+  // Per-frame state and scratch.
+  std::vector<Row> rows_;
+  std::vector<int> row_nodes_;                  // distinct constrained nodes, in order
+  std::vector<Eigen::Vector3d> node_force_mn_;  // per constrained node: Σ direction·λ
+  std::vector<int> node_constrained_index_;     // per node: index in row_nodes_, or −1
+  std::vector<NodeContact> contacts_;
+  std::vector<std::uint8_t> in_contact_;  // per node, within a frame's active-set rounds
+  std::vector<std::uint8_t> released_;    // per node: let go once this frame
   Eigen::MatrixXd capacitance_;
   Eigen::LLT<Eigen::MatrixXd> capacitance_llt_;
   Eigen::VectorXd lambda_mn_, rhs_, u_free_, rhs_free_;
-  Eigen::VectorXd u_;         // global displacements, mm
-  Eigen::VectorXd reaction_;  // global reactions on held DOFs, mN
+  Eigen::VectorXd u_;  // global displacements, mm
+  Eigen::VectorXd last_good_u_;
   std::vector<Eigen::Vector3d> deformed_;
+  ExactFemStepStats last_stats_;
 };
 
 }  // namespace ultrasim::sim

@@ -22,6 +22,28 @@ struct FemSettings {
   double relative_tolerance = 1e-8;
 };
 
+// The published mass-spring-damper system (MSDS): every tet edge a spring, duplicates merged by
+// summing stiffness and damping. Used by the explicit (published) and implicit Euler engines.
+struct MsdsSettings {
+  // Spring stiffness per unit Young's modulus of the tets sharing the edge, mm: k = E × this
+  // (kPa × mm = mN/mm). The published k = 0.002·E (E in Pa, k in N/m) is 2 mm.
+  double stiffness_per_modulus_mm = 2.0;
+  // Damping per unit stiffness, seconds: c = k × this (published 0.1).
+  double damping_per_stiffness_s = 0.1;
+  // Tissue density for the lumped nodal masses, kg/m³ (soft tissue ≈ water).
+  double density_kg_per_m3 = 1000.0;
+  // Integration step and steps per frame (published: 0.002-0.01 s, 20-40 steps).
+  double time_step_s = 0.005;
+  int steps_per_frame = 20;
+};
+
+// Corotational linear FEM: per-tet rotation extracted by polar decomposition each frame, the
+// linear stiffness applied in each tet's rotated frame; solved by PCG like the linear FEM.
+struct CorotationalSettings {
+  int pcg_iterations_per_frame = 20;  // warm-started, as the published linear FEM
+  double relative_tolerance = 1e-8;
+};
+
 // The published probe collider: a sphere whose lowest point is the centre of the transducer face;
 // mesh nodes inside it are pushed out to its surface.
 struct SphereColliderSettings {
