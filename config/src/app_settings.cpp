@@ -62,15 +62,97 @@ TableSchema<sim::FemSettings> fem_schema() {
   t.add(field("relative_tolerance", &S::relative_tolerance, RealIn::open(0.0, 1.0),
               "Stop early when the residual norm falls below this fraction of the right-hand "
               "side norm."));
+  t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
+              "Above this fraction of inverted tets a frame is rejected and the last good "
+              "shape kept."));
   return t;
 }
 
-TableSchema<sim::SphereColliderSettings> collider_schema() {
-  using S = sim::SphereColliderSettings;
+TableSchema<sim::ProbeColliderSettings> collider_schema() {
+  using S = sim::ProbeColliderSettings;
   TableSchema<S> t;
+  t.add(field("shape", &S::shape,
+              Choice<sim::ProbeContactShape>{{{"face", sim::ProbeContactShape::kFace},
+                                              {"sphere", sim::ProbeContactShape::kSphere}}},
+              "face = the transducer face (rounded box for a linear probe, cylinder section for "
+              "a convex one); sphere = the published collider, its lowest point at the face."));
   t.add(field("radius_mm", &S::radius_mm, RealIn::open_closed(0.5, 500.0),
               "Sphere radius in mm; larger: flatter, more probe-like contact; smaller: a "
               "fingertip."));
+  t.add(field("face_thickness_mm", &S::face_thickness_mm, RealIn::closed(2.0, 50.0),
+              "Face extent across the scan plane (elevation), mm; its width comes from the "
+              "case's probe."));
+  t.add(field("edge_radius_mm", &S::edge_radius_mm, RealIn::closed(0.0, 10.0),
+              "Rounding of the face's edges, mm (below half the face thickness)."));
+  return t;
+}
+
+TableSchema<sim::SimSettings> sim_schema() {
+  using S = sim::SimSettings;
+  TableSchema<S> t;
+  t.add(field("method", &S::method,
+              Choice<sim::EngineKind>{{{"exact", sim::EngineKind::kExactFem},
+                                       {"pcg", sim::EngineKind::kPcgFem},
+                                       {"corotational", sim::EngineKind::kCorotationalFem},
+                                       {"msds-explicit", sim::EngineKind::kMsdsExplicit},
+                                       {"msds-implicit", sim::EngineKind::kMsdsImplicit}}},
+              "Deformation method: exact = linear FEM solved exactly; pcg = the published "
+              "linear FEM (fixed PCG budget); corotational = FEM with per-tet rotations; "
+              "msds-explicit = the published mass-spring system; msds-implicit = the same, "
+              "implicit Euler."));
+  return t;
+}
+
+TableSchema<sim::ExactFemSettings> exact_schema() {
+  using S = sim::ExactFemSettings;
+  TableSchema<S> t;
+  t.add(field("contact", &S::contact,
+              Choice<sim::ContactModel>{{{"frictionless", sim::ContactModel::kFrictionless},
+                                         {"stick", sim::ContactModel::kStick}}},
+              "frictionless = the probe pushes along its normal and never pulls (gel); stick = "
+              "touched nodes held where the collider puts them (the published rule)."));
+  t.add(field("max_contact_rounds", &S::max_contact_rounds, IntegerIn<int>{1, 100},
+              "Active-set rounds per frame for frictionless contact."));
+  t.add(field("max_cached_nodes", &S::max_cached_nodes, IntegerIn<int>{0, 100'000},
+              "Off-skin nodes whose K^-1 columns are kept between frames."));
+  t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
+              "Above this fraction of inverted tets a frame is rejected and the last good "
+              "shape kept."));
+  return t;
+}
+
+TableSchema<sim::MsdsSettings> msds_schema() {
+  using S = sim::MsdsSettings;
+  TableSchema<S> t;
+  t.add(field("stiffness_per_modulus_mm", &S::stiffness_per_modulus_mm,
+              RealIn::open_closed(0.0, 1'000.0),
+              "Spring stiffness k = E x this (kPa x mm = mN/mm); the published 0.002 E (Pa, "
+              "N/m) is 2 mm."));
+  t.add(field("damping_per_stiffness_s", &S::damping_per_stiffness_s, RealIn::closed(0.0, 10.0),
+              "Spring damping c = k x this, seconds (published 0.1)."));
+  t.add(field("density_kg_per_m3", &S::density_kg_per_m3, RealIn::open_closed(0.0, 20'000.0),
+              "Tissue density for the lumped nodal masses (soft tissue ~1000)."));
+  t.add(field("time_step_s", &S::time_step_s, RealIn::open_closed(0.0, 1.0),
+              "Integration step, seconds (published 0.002-0.01)."));
+  t.add(field("steps_per_frame", &S::steps_per_frame, IntegerIn<int>{1, 10'000},
+              "Integration steps per frame (published 20-40); steps x dt is the simulated time "
+              "per frame."));
+  t.add(field("scale_mass_for_explicit_step", &S::scale_mass_for_explicit_step, Boolean{},
+              "Explicit Euler: raise node masses just enough for time_step_s to be stable (with "
+              "physical masses the limit is ~1e-7 s); statics unchanged, motion slower."));
+  t.add(field("implicit_steps_per_frame", &S::implicit_steps_per_frame, IntegerIn<int>{1, 10'000},
+              "Implicit Euler covers the frame's simulated time in this many steps."));
+  return t;
+}
+
+TableSchema<sim::CorotationalSettings> corotational_schema() {
+  using S = sim::CorotationalSettings;
+  TableSchema<S> t;
+  t.add(field("pcg_iterations_per_frame", &S::pcg_iterations_per_frame, IntegerIn<int>{1, 10'000},
+              "PCG iterations per frame on the rotated stiffness, warm-started."));
+  t.add(field("relative_tolerance", &S::relative_tolerance, RealIn::open(0.0, 1.0),
+              "Stop early when the residual norm falls below this fraction of the right-hand "
+              "side norm."));
   return t;
 }
 
@@ -93,11 +175,18 @@ const DocumentSchema<AppSettings>& app_schema() {
     d.table("display", &AppSettings::display, display_schema(), "The display and its size.");
     d.table("bscan", &AppSettings::bscan, bscan_schema(),
             "The B-scan image grid and display mapping.");
+    d.table("sim", &AppSettings::sim, sim_schema(),
+            "Tissue deformation: which method runs (switchable live in the kiosk).");
     d.table("fem", &AppSettings::fem, fem_schema(),
-            "Quasi-static linear FEM, solved by preconditioned conjugate gradients.");
+            "Quasi-static linear FEM, solved by preconditioned conjugate gradients (method pcg).");
+    d.table("exact", &AppSettings::exact, exact_schema(),
+            "Quasi-static linear FEM solved exactly (method exact).");
+    d.table("corotational", &AppSettings::corotational, corotational_schema(),
+            "Corotational linear FEM (method corotational).");
+    d.table("msds", &AppSettings::msds, msds_schema(),
+            "Mass-spring-damper system (methods msds-explicit and msds-implicit).");
     d.table("collider", &AppSettings::collider, collider_schema(),
-            "The probe collider: a sphere whose lowest point is the centre of the transducer "
-            "face.");
+            "The probe as the tissue feels it.");
     d.table("frame", &AppSettings::frame, frame_schema(), "The fixed per-frame time budget.");
     return d;
   }();

@@ -67,6 +67,19 @@ struct RealIn {
   std::string write(double value, const WriteContext&) const { return toml_real(value); }
 };
 
+// true or false.
+struct Boolean {
+  using value_type = bool;
+
+  std::string allowed() const { return "true or false"; }
+  bool read(const toml::node& node, const ReadContext& ctx, std::string_view key) const {
+    const auto* flag = node.as_boolean();
+    if (flag == nullptr) fail_wrong_type(ctx, node, key, "boolean", allowed());
+    return flag->get();
+  }
+  std::string write(bool value, const WriteContext&) const { return value ? "true" : "false"; }
+};
+
 // A string; optionally it must not be empty.
 struct Text {
   using value_type = std::string;

@@ -115,7 +115,8 @@ TEST_F(KioskHeadless, RunsToCompletionAndWritesASaneReport) {
   const double in_contact = json_number(json, "frames_in_contact");
   EXPECT_GT(in_contact, 0.7 * frames);
   EXPECT_LT(in_contact, frames);  // hovering at the start: no contact
-  EXPECT_EQ(json_number(json, "solver_resets"), 0);
+  EXPECT_EQ(json_number(json, "diverged_frames"), 0);
+  EXPECT_EQ(json_number(json, "method_switches"), 0);
   const double force = json_number(json, "max_contact_force_n");
   EXPECT_GT(force, 0.1);
   EXPECT_LT(force, 100.0);
@@ -190,10 +191,10 @@ TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {
             << " mm2; artery lumen " << artery_rest << " -> " << artery_pressed << " mm2\n";
   EXPECT_GT(vein_rest, 40.0) << "the vein's lumen is visible at rest";
   EXPECT_GT(artery_rest, 15.0) << "the artery's lumen is visible at rest";
-  // Measured on the default case: the vein loses ~42 % of its lumen at 8 mm (7.4 N), the artery
-  // ~2 %. Linear FEM treats the lumen as a soft solid, so the vein narrows but cannot buckle
-  // shut; full collapse is the deformation-engines issue's target.
-  EXPECT_LT(vein_pressed, 0.7 * vein_rest) << "the vein narrows under the probe";
+  // Measured on the default case with the exact FEM and the transducer face: the vein's dark
+  // area falls 55 -> 21 mm² at 8 mm, the artery's 31 -> 30. Linear FEM treats the lumen as a soft
+  // solid, so the vein narrows but does not buckle shut (docs/accuracy.md).
+  EXPECT_LT(vein_pressed, 0.5 * vein_rest) << "the vein narrows under the probe";
   EXPECT_GT(artery_pressed, 0.9 * artery_rest) << "the artery keeps its lumen";
   EXPECT_GT(vein_released, 0.8 * vein_rest) << "the vein reopens when the pressure is released";
 }

@@ -49,6 +49,16 @@ double signed_tet_volume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
   return (b - a).cross(c - a).dot(d - a) / 6.0;
 }
 
+int count_inverted_tets(std::span<const std::array<std::int32_t, 4>> tets,
+                        std::span<const Eigen::Vector3d> positions_mm) {
+  int inverted = 0;
+  for (const auto& t : tets) {
+    const auto& p = positions_mm;
+    inverted += signed_tet_volume(p[t[0]], p[t[1]], p[t[2]], p[t[3]]) <= 0.0;
+  }
+  return inverted;
+}
+
 TetMesh make_grid_tet_mesh(const GridSpec& grid) {
   if ((grid.nodes.array() < 2).any()) throw std::invalid_argument("grid needs >= 2 nodes per axis");
   if (!(grid.spacing_mm.array() > 0).all()) throw std::invalid_argument("grid spacing must be > 0");

@@ -1,6 +1,7 @@
 #include "ultrasim/kiosk/headless_run.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <stdexcept>
 
 #include "ultrasim/config/app_settings.hpp"
@@ -16,11 +17,13 @@ namespace ultrasim::kiosk {
 
 namespace {
 
-// A change of the scanner's controls at a moment of the script, as a trainee's button press.
+// A change of the scanner's controls at a moment of the script, as a trainee's button press: the
+// freeze and depth controls, or (when `method` is set) the live switch of deformation method.
 struct ControlEvent {
   hal::TimestampUs time_us;
-  bool frozen;
-  double depth_mm;
+  bool frozen = false;
+  double depth_mm = 0.0;
+  std::optional<sim::EngineKind> method;
 };
 
 struct Script {
@@ -30,10 +33,7 @@ struct Script {
 
 // sweep-press: the probe's sweep and press over the case, then the controls: freeze, press again
 // while frozen (the image must hold while the tissue moves), unfreeze at a deeper setting.
-Script make_script(const std::string& name, const config::CaseScan& scan, double depth_mm) {
-  if (name != "sweep-press") {
-    throw std::invalid_argument("unknown script '" + name + "'; available: sweep-press");
-  }
+Script sweep_press(const config::CaseScan& scan, double depth_mm) {
   const Eigen::Vector3d start(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]);
   const Eigen::Vector3d end(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2]);
   Script script;
@@ -48,8 +48,43 @@ Script make_script(const std::string& name, const config::CaseScan& scan, double
   script.keyframes.push_back({at(0.75), pressed, last.orientation, "frozen"});
   script.keyframes.push_back({at(1.0), last.position_mm, last.orientation, ""});
   script.keyframes.push_back({at(1.5), last.position_mm, last.orientation, "deeper"});
-  script.controls = {{at(0.0), true, depth_mm}, {at(1.0), false, 1.5 * depth_mm}};
+  script.controls = {{at(0.0), true, depth_mm, {}}, {at(1.0), false, 1.5 * depth_mm, {}}};
   return script;
+}
+
+// compare-methods: the probe presses in the middle of the sweep and holds while the trainee
+// switches through every deformation method live; a screenshot per method once it has settled.
+Script compare_methods(const config::CaseScan& scan) {
+  const Eigen::Vector3d middle =
+      (Eigen::Vector3d(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]) +
+       Eigen::Vector3d(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2])) /
+      2;
+  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
+  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
+  const auto at = [](double seconds) { return static_cast<hal::TimestampUs>(seconds * 1e6); };
+  Script script;
+  script.keyframes = {{at(0.0), middle - 5.0 * down, level, ""},
+                      {at(0.5), middle, level, ""},
+                      {at(1.5), middle + scan.press_depth_mm * down, level, ""}};
+  const sim::EngineKind order[] = {sim::EngineKind::kExactFem, sim::EngineKind::kPcgFem,
+                                   sim::EngineKind::kCorotationalFem,
+                                   sim::EngineKind::kMsdsExplicit, sim::EngineKind::kMsdsImplicit};
+  double t = 1.5;
+  for (const auto method : order) {
+    script.controls.push_back({at(t), false, 0.0, method});
+    t += 1.0;
+    script.keyframes.push_back(
+        {at(t), middle + scan.press_depth_mm * down, level, std::string(sim::engine_key(method))});
+  }
+  script.keyframes.push_back({at(t + 0.75), middle - 5.0 * down, level, "lifted"});
+  return script;
+}
+
+Script make_script(const std::string& name, const config::CaseScan& scan, double depth_mm) {
+  if (name == "sweep-press") return sweep_press(scan, depth_mm);
+  if (name == "compare-methods") return compare_methods(scan);
+  throw std::invalid_argument("unknown script '" + name +
+                              "'; available: sweep-press, compare-methods");
 }
 
 }  // namespace
@@ -75,7 +110,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.mesh_tets = tissue.mesh.tet_count();
   report.bscan_width_px = session.bscan_width_px();
   report.bscan_height_px = session.bscan_height_px();
-  report.pcg_iterations_per_frame = settings.fem.pcg_iterations_per_frame;
+  report.method = std::string(sim::engine_key(session.method()));
   report.threads = jobs.thread_count();
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
   report.slicer = session.slicer_name();
@@ -97,10 +132,16 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
     const hal::TimestampUs now = script_clock.now_us();
     while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
-      BscanControls controls = session.controls();
-      controls.frozen = script.controls[next_control].frozen;
-      controls.depth_mm = script.controls[next_control].depth_mm;
-      session.set_controls(controls);
+      const ControlEvent& event = script.controls[next_control];
+      if (event.method) {
+        if (*event.method != session.method()) report.method_switches += 1;
+        session.switch_method(*event.method);
+      } else {
+        BscanControls controls = session.controls();
+        controls.frozen = event.frozen;
+        controls.depth_mm = event.depth_mm;
+        session.set_controls(controls);
+      }
       ++next_control;
     }
     const hal::TimestampUs start = clock.now_us();
@@ -114,8 +155,10 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.frames += 1;
     report.poses_rejected += outcome.pose_rejected;
     report.frames_in_contact += outcome.in_contact;
-    report.solver_resets += outcome.fem.reset_after_divergence;
-    report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.fem.contact_force_n);
+    report.diverged_frames += outcome.sim.diverged;
+    report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
+    report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
+    report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);
     report.sim.record(outcome.sim_us);
     report.slice.record(outcome.slice_us);
     report.surfaces.record(outcome.surfaces_us);
@@ -127,7 +170,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       Snapshot snap;
       snap.marker = markers[next_marker].second;
       snap.frame = frame;
-      snap.contact_force_n = outcome.fem.contact_force_n;
+      snap.contact_force_n = outcome.sim.contact_force_n;
+      snap.method = std::string(sim::engine_key(session.method()));
       snap.bscan_png = "bscan-" + snap.marker + ".png";
       snap.screen_png = "screen-" + snap.marker + ".png";
       render::write_png_grey(options.out_dir / snap.bscan_png, session.bscan(),

@@ -5,9 +5,12 @@
 #include <exception>
 #include <iostream>
 
+#include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/posix/monotonic_clock.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
+#include "ultrasim/kiosk/compression_study.hpp"
 #include "ultrasim/kiosk/headless_run.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
 
 #ifndef ULTRASIM_DEFAULT_CASE_DIR
 #define ULTRASIM_DEFAULT_CASE_DIR "cases/default"
@@ -33,7 +36,49 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "threads for the frame's parallel work (the kiosk: 2)")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  std::string study_csv, study_method = "exact";
+  int study_frames = 1;
+  app.add_option("--compression-study", study_csv,
+                 "press over the case's vein and artery and write force and lumen areas to this "
+                 "CSV (headless)");
+  app.add_option("--method", study_method,
+                 "deformation method for --compression-study: exact, pcg, corotational, "
+                 "msds-explicit, msds-implicit")
+      ->capture_default_str();
+  app.add_option("--frames-per-step", study_frames,
+                 "frames simulated at each depth of --compression-study")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+
+  if (!study_csv.empty()) {
+    try {
+      const auto method = ultrasim::sim::engine_from_key(study_method);
+      if (!method) throw std::invalid_argument("unknown --method '" + study_method + "'");
+      const auto settings = config_path.empty() ? ultrasim::config::AppSettings{}
+                                                : ultrasim::config::load_app_settings(config_path);
+      const auto tissue = ultrasim::kiosk::load_tissue_case(options.case_dir);
+      ultrasim::drivers::posix::ThreadPool jobs(threads);
+      ultrasim::kiosk::CompressionStudyOptions study_options;
+      study_options.method = *method;
+      study_options.frames_per_step = study_frames;
+      const auto study =
+          ultrasim::kiosk::run_compression_study(tissue, settings, study_options, jobs);
+      ultrasim::kiosk::write_compression_csv(study_csv, study);
+      std::cout << "ultrasim-kiosk: wrote " << study_csv << "; F_v = "
+                << (study.vein_collapse_force_n ? std::to_string(*study.vein_collapse_force_n)
+                                                : std::string("not reached"))
+                << " N; artery at 3 F_v: "
+                << (study.artery_fraction_at_3fv
+                        ? std::to_string(100.0 * *study.artery_fraction_at_3fv) + " %"
+                        : std::string("not reached"))
+                << "\n";
+      return 0;
+    } catch (const std::exception& e) {
+      std::cerr << "ultrasim-kiosk: " << e.what() << "\n";
+      return 1;
+    }
+  }
 
   if (!headless) {
     std::cerr << "ultrasim-kiosk: only --headless is available yet (the DRM/KMS display back end "

@@ -39,9 +39,12 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"height_px\": " << r.bscan_height_px << ", \"slicer\": " << quoted(r.slicer) << "},\n"
       << "  \"threads\": " << r.threads << ",\n"
       << "  \"surface_triangles\": " << r.surface_triangles << ",\n"
-      << "  \"fem\": {\"method\": \"linear-pcg\", \"pcg_iterations_per_frame\": "
-      << r.pcg_iterations_per_frame << ", \"max_contact_force_n\": " << r.max_contact_force_n
-      << ", \"solver_resets\": " << r.solver_resets << "},\n"
+      << "  \"sim\": {\"method\": " << quoted(r.method)
+      << ", \"method_switches\": " << r.method_switches
+      << ", \"max_contact_force_n\": " << r.max_contact_force_n
+      << ", \"diverged_frames\": " << r.diverged_frames << ", \"substepped\": " << r.recoveries[1]
+      << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
+      << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
       << "  \"frames\": " << r.frames << ",\n"
       << "  \"frames_in_contact\": " << r.frames_in_contact << ",\n"
       << "  \"poses_rejected\": " << r.poses_rejected << ",\n"
@@ -60,7 +63,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
     const Snapshot& s = r.snapshots[i];
     out << (i ? ",\n" : "\n") << "    {\"marker\": " << quoted(s.marker)
         << ", \"frame\": " << s.frame << ", \"bscan\": " << quoted(s.bscan_png)
-        << ", \"screen\": " << quoted(s.screen_png)
+        << ", \"screen\": " << quoted(s.screen_png) << ", \"method\": " << quoted(s.method)
         << ", \"contact_force_n\": " << s.contact_force_n << "}";
   }
   out << "\n  ]\n}\n";

@@ -34,6 +34,19 @@ void check_range(const char* name, double value, double lo, double hi) {
   }
 }
 
+// The nodes of the mesh's skin face (its shallowest layer, z minimum: the case format puts the
+// skin there), which the probe can touch.
+std::vector<std::uint8_t> skin_face_nodes(const TissueCase& tissue) {
+  const auto& p = tissue.mesh.rest_positions_mm;
+  double top = p.empty() ? 0.0 : p[0].z();
+  for (const auto& q : p) top = std::min(top, q.z());
+  std::vector<std::uint8_t> skin(p.size(), 0);
+  for (std::size_t n = 0; n < p.size(); ++n) {
+    skin[n] = !tissue.fixed_nodes[n] && p[n].z() <= top + 1e-9 * (1.0 + std::abs(top));
+  }
+  return skin;
+}
+
 }  // namespace
 
 Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
@@ -42,7 +55,8 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       settings_(settings),
       clock_(clock),
       jobs_(jobs),
-      fem_(tissue.mesh, tissue.tet_materials, tissue.fixed_nodes, settings.fem),
+      engine_settings_{settings.fem, settings.exact, settings.msds, settings.corotational},
+      skin_nodes_(skin_face_nodes(tissue)),
       locator_(tissue.mesh),
       controls_(controls_from(settings, tissue.settings.probe)),
       probe_(tissue.settings.probe),
@@ -54,7 +68,36 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
       node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f),
       structures_(tissue.structures) {
+  switch_method(settings.sim.method);
   rebuild_image_pipeline();
+}
+
+void Session::switch_method(sim::EngineKind method) {
+  auto& slot = engines_[static_cast<std::size_t>(method)];
+  if (!slot) {
+    slot = sim::make_engine(method, tissue_.mesh, tissue_.tet_materials, tissue_.fixed_nodes,
+                            engine_settings_, skin_nodes_, &jobs_);
+  }
+  if (engine_ != nullptr && engine_ != slot.get()) {
+    slot->set_displacements_mm(engine_->displacements_mm());
+  }
+  engine_ = slot.get();
+}
+
+std::optional<sim::ProbeCollider> Session::probe_collider() const {
+  if (!pose_) return std::nullopt;
+  const auto& c = settings_.collider;
+  const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
+  if (c.shape == sim::ProbeContactShape::kSphere) {
+    return sim::ProbeCollider::sphere(
+        sim::SphereCollider::behind_face(pose_->position_mm, beam, c.radius_mm), beam);
+  }
+  if (probe_.kind == imaging::ProbeKind::kConvex) {
+    return sim::ProbeCollider::convex_face(pose_->position_mm, pose_->orientation, probe_.radius_mm,
+                                           c.face_thickness_mm, c.edge_radius_mm);
+  }
+  return sim::ProbeCollider::linear_face(pose_->position_mm, pose_->orientation, probe_.width_mm,
+                                         c.face_thickness_mm, c.edge_radius_mm);
 }
 
 void Session::rebuild_image_pipeline() {
@@ -101,19 +144,20 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   }
 
   const hal::TimestampUs t0 = clock_.now_us();
-  if (pose_) {
-    const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
-    outcome.fem = fem_.step(
-        sim::SphereCollider::behind_face(pose_->position_mm, beam, settings_.collider.radius_mm));
-  } else {
-    outcome.fem = fem_.step_without_contact();
-  }
+  // Dynamic methods integrate over the time since the last frame (a 60 Hz frame at first, and
+  // never more than 0.1 s: a stalled frame must not become one giant step).
+  const double frame_dt_s =
+      last_update_us_ < 0 ? 1.0 / 60.0
+                          : std::clamp(static_cast<double>(t0 - last_update_us_) * 1e-6, 1e-4, 0.1);
+  last_update_us_ = t0;
+  const std::optional<sim::ProbeCollider> collider = probe_collider();
+  outcome.sim = engine_->step(collider ? &*collider : nullptr, frame_dt_s);
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
-  in_contact_ = outcome.fem.contact_nodes > 0;
+  in_contact_ = outcome.sim.contact_nodes > 0;
   outcome.in_contact = in_contact_;
   const hal::TimestampUs t1 = clock_.now_us();
 
-  const auto deformed = fem_.deformed_positions_mm();
+  const auto deformed = engine_->deformed_positions_mm();
   if (controls_.frozen) {
     // The image holds still, as a frozen scanner's does; the tissue keeps following the probe.
   } else if (in_contact_) {
@@ -151,7 +195,7 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
 }
 
 void Session::slice_in_parallel(const imaging::ProbePose& probe) {
-  const auto deformed = fem_.deformed_positions_mm();
+  const auto deformed = engine_->deformed_positions_mm();
   if (fast_slicer_) {
     const int parts = std::min(2 * jobs_.thread_count(), imaging::FastSlicer::kMaxParts);
     fast_slicer_->begin_prepare(tissue_.volume, deformed, probe, parts);
@@ -205,10 +249,15 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
     m.topLeftCorner<3, 3>() = pose_->orientation.toRotationMatrix().cast<float>();
     m.topRightCorner<3, 1>() = pose_->position_mm.cast<float>();
     std::copy(m.data(), m.data() + 16, frame.probe.probe_to_patient.begin());  // column-major
-    const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
-    const Eigen::Vector3d centre = pose_->position_mm - settings_.collider.radius_mm * beam;
-    for (int a = 0; a < 3; ++a) frame.probe.collider_center_mm[a] = static_cast<float>(centre[a]);
-    frame.probe.collider_radius_mm = static_cast<float>(settings_.collider.radius_mm);
+    // The published sphere is drawn; a face collider is the probe model itself.
+    if (settings_.collider.shape == sim::ProbeContactShape::kSphere) {
+      const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
+      const Eigen::Vector3d centre = pose_->position_mm - settings_.collider.radius_mm * beam;
+      for (int a = 0; a < 3; ++a) {
+        frame.probe.collider_center_mm[a] = static_cast<float>(centre[a]);
+      }
+      frame.probe.collider_radius_mm = static_cast<float>(settings_.collider.radius_mm);
+    }
   }
   const Eigen::Vector3d lo = tissue_.volume.world_min_mm(), hi = tissue_.volume.world_max_mm();
   for (int a = 0; a < 3; ++a) {

@@ -496,7 +496,7 @@ EngineStepStats ExactFem::step(const ProbeCollider* probe, double /*frame_dt_s*/
     out.contact_nodes = s.contact_nodes;
     out.contact_force_n = s.contact_force_n;
   }
-  out.inverted_tets = count_inverted_tets();
+  out.inverted_tets = geometry::count_inverted_tets(tets_, deformed_);
   const double inverted_fraction = static_cast<double>(out.inverted_tets) /
                                    static_cast<double>(std::max<std::size_t>(1, tets_.size()));
   if (inverted_fraction > settings_.max_inverted_fraction || !u_.allFinite()) {
@@ -512,15 +512,6 @@ void ExactFem::update_deformed() {
   for (int node = 0; node < node_count(); ++node) {
     deformed_[node] = rest_[node] + u_.segment<3>(3 * node);
   }
-}
-
-int ExactFem::count_inverted_tets() const {
-  int inverted = 0;
-  for (const auto& t : tets_) {
-    inverted += geometry::signed_tet_volume(deformed_[t[0]], deformed_[t[1]], deformed_[t[2]],
-                                            deformed_[t[3]]) <= 0.0;
-  }
-  return inverted;
 }
 
 }  // namespace ultrasim::sim

@@ -70,6 +70,8 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
       contact_push_mn_(mesh.rest_positions_mm.size(), 0.0),
       only_held_by_adhesion_(mesh.rest_positions_mm.size(), 0),
       u_before_contact_(mesh.rest_positions_mm.size(), Eigen::Vector3d::Zero()),
+      contact_normal_(mesh.rest_positions_mm.size(), Eigen::Vector3d::UnitZ()),
+      tets_(mesh.tets),
       deformed_(mesh.rest_positions_mm) {
   const int n = mesh.node_count();
   if (tet_materials.size() != mesh.tets.size()) {
@@ -86,6 +88,9 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
   }
   if (settings.pcg_iterations_per_frame < 1) {
     throw std::invalid_argument("pcg_iterations_per_frame must be >= 1");
+  }
+  if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
+    throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
 
   std::vector<Eigen::Triplet<double>> triplets;
@@ -117,6 +122,7 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
     if (fixed_[node]) free_mask_.segment<3>(3 * node).setZero();
   }
   r_ = z_ = p_ = q_ = Eigen::VectorXd::Zero(3 * n);
+  last_good_u_ = u_;
 }
 
 void LinearFem::prescribe_displacement(int node, const Eigen::Vector3d& displacement_mm) {
@@ -137,7 +143,7 @@ Eigen::Vector3d LinearFem::nodal_force_mn(int node) const {
   return f;
 }
 
-void LinearFem::apply_collider(const SphereCollider* collider) {
+void LinearFem::apply_collider(const ProbeCollider* collider) {
   const int n = node_count();
   // Signorini contact with an active set. A node inside the probe is pushed out to its surface.
   // A node that touched last frame and was pushed on stays on the (moved) surface, so a probe
@@ -150,22 +156,20 @@ void LinearFem::apply_collider(const SphereCollider* collider) {
     only_held_by_adhesion_[node] = 0;
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
     if (fixed_[node] || prescribed_[node] || collider == nullptr) continue;
-    const Eigen::Vector3d d = rest_[node] + u_.segment<3>(3 * node) - collider->center_mm;
-    const double dist = d.norm();
-    const bool inside = dist < collider->radius_mm;
+    const Eigen::Vector3d p = rest_[node] + u_.segment<3>(3 * node);
+    const SurfacePoint surface = collider->closest_surface_point(p);
+    const bool inside = (p - surface.point_mm).dot(surface.normal) < 0.0;
     if (!inside && !was_pressed) continue;
-    const Eigen::Vector3d dir = dist > 1e-12 ? Eigen::Vector3d(d / dist) : Eigen::Vector3d(0, 0, 1);
     u_before_contact_[node] = u_.segment<3>(3 * node);
-    u_.segment<3>(3 * node) = collider->center_mm + collider->radius_mm * dir - rest_[node];
+    u_.segment<3>(3 * node) = surface.point_mm - rest_[node];
+    contact_normal_[node] = surface.normal;
     in_contact_[node] = 1;
     only_held_by_adhesion_[node] = !inside;
   }
   if (collider != nullptr) {
     for (int node = 0; node < n; ++node) {
       if (!only_held_by_adhesion_[node]) continue;
-      const Eigen::Vector3d outward =
-          (rest_[node] + u_.segment<3>(3 * node) - collider->center_mm).normalized();
-      contact_push_mn_[node] = nodal_force_mn(node).dot(outward);
+      contact_push_mn_[node] = nodal_force_mn(node).dot(contact_normal_[node]);
     }
     for (int node = 0; node < n; ++node) {
       if (only_held_by_adhesion_[node] && contact_push_mn_[node] <= 0.0) {
@@ -222,15 +226,13 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
   return stats;
 }
 
-double LinearFem::update_contact_forces(const SphereCollider* collider) {
+double LinearFem::update_contact_forces() {
   Eigen::Vector3d total_mn = Eigen::Vector3d::Zero();
   for (int node = 0; node < node_count(); ++node) {
     contact_push_mn_[node] = 0.0;
-    if (!in_contact_[node] || collider == nullptr) continue;
+    if (!in_contact_[node]) continue;
     const Eigen::Vector3d force = nodal_force_mn(node);
-    const Eigen::Vector3d outward =
-        (rest_[node] + u_.segment<3>(3 * node) - collider->center_mm).normalized();
-    contact_push_mn_[node] = force.dot(outward);
+    contact_push_mn_[node] = force.dot(contact_normal_[node]);
     total_mn += force;
   }
   return total_mn.norm() / 1000.0;
@@ -243,29 +245,66 @@ void LinearFem::update_deformed() {
 }
 
 FemStepStats LinearFem::step(const SphereCollider& collider) {
-  apply_collider(&collider);
+  const ProbeCollider probe = ProbeCollider::sphere(collider);
+  return step_probe(&probe);
+}
+
+FemStepStats LinearFem::step_without_contact() {
+  return step_probe(nullptr);
+}
+
+FemStepStats LinearFem::step_probe(const ProbeCollider* probe) {
+  apply_collider(probe);
   FemStepStats stats = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
   for (auto c : in_contact_) stats.contact_nodes += c;
-  last_collider_ = collider;
-  has_collider_ = true;
-  stats.contact_force_n = update_contact_forces(&collider);
+  stats.contact_force_n = update_contact_forces();
   update_deformed();
   return stats;
 }
 
-FemStepStats LinearFem::step_without_contact() {
-  apply_collider(nullptr);
-  has_collider_ = false;
-  FemStepStats stats = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
-  update_contact_forces(nullptr);
+EngineStepStats LinearFem::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+  last_good_u_ = u_;
+  const FemStepStats fem = step_probe(probe);
+  EngineStepStats out;
+  out.iterations = fem.pcg_iterations;
+  out.relative_residual = fem.relative_residual;
+  out.contact_nodes = fem.contact_nodes;
+  out.contact_force_n = fem.contact_force_n;
+  out.inverted_tets = geometry::count_inverted_tets(tets_, deformed_);
+  if (fem.reset_after_divergence) {
+    out.diverged = true;
+    out.recovery = Recovery::kReset;
+  } else if (static_cast<double>(out.inverted_tets) >
+             settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
+    // Pressed through the tissue: a linear model's answer there is garbage. Show the last good.
+    out.diverged = true;
+    out.recovery = Recovery::kKeptLastGood;
+    u_ = last_good_u_;
+    std::fill(in_contact_.begin(), in_contact_.end(), 0);
+    update_deformed();
+  }
+  return out;
+}
+
+void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
+  if (u_mm.size() != u_.size()) {
+    throw std::invalid_argument("LinearFem::set_displacements_mm: expected " +
+                                std::to_string(u_.size()) + " values, got " +
+                                std::to_string(u_mm.size()));
+  }
+  u_ = u_mm;
+  for (int node = 0; node < node_count(); ++node) {
+    if (fixed_[node]) u_.segment<3>(3 * node).setZero();
+    in_contact_[node] = 0;  // the next step finds the probe's contacts afresh
+  }
+  last_good_u_ = u_;
   update_deformed();
-  return stats;
 }
 
 FemStepStats LinearFem::solve_to_tolerance(double tolerance, int max_iterations) {
   FemStepStats stats = run_pcg(max_iterations, tolerance);
   for (auto c : in_contact_) stats.contact_nodes += c;
-  stats.contact_force_n = update_contact_forces(has_collider_ ? &last_collider_ : nullptr);
+  stats.contact_force_n = update_contact_forces();
   update_deformed();
   return stats;
 }

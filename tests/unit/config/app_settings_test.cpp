@@ -146,7 +146,9 @@ TEST(AppSettings, UnknownTableIsAnError) {
   EXPECT_EQ(caught.details.line, 2);
   EXPECT_EQ(caught.details.key, "colider");
   EXPECT_THAT(caught.message, HasSubstr("did you mean \"collider\"?"));
-  EXPECT_THAT(caught.message, HasSubstr("allowed: display, bscan, fem, collider, frame"));
+  EXPECT_THAT(
+      caught.message,
+      HasSubstr("allowed: display, bscan, sim, fem, exact, corotational, msds, collider, frame"));
 }
 
 TEST(AppSettings, FarOffUnknownKeyGetsNoSuggestion) {

@@ -44,7 +44,7 @@ TEST_F(SessionTest, PressingShowsTissueAndPushesTheSkinDown) {
   FrameOutcome outcome;
   for (int f = 0; f < 10; ++f) outcome = session.update(pose_at(0.3 * f));
   EXPECT_TRUE(outcome.in_contact);
-  EXPECT_GT(outcome.fem.contact_force_n, 0.0);
+  EXPECT_GT(outcome.sim.contact_force_n, 0.0);
   const auto bright = std::count_if(session.bscan().begin(), session.bscan().end(),
                                     [](std::uint8_t p) { return p > 40; });
   EXPECT_GT(bright, 64 * 64 / 4);
@@ -158,7 +158,7 @@ TEST_F(SessionTest, FreezeHoldsTheImageWhileTheTissueFollowsTheProbe) {
   const std::vector<std::uint8_t> held(session.bscan().begin(), session.bscan().end());
   FrameOutcome outcome;
   for (int f = 0; f < 5; ++f) outcome = session.update(pose_at(3.0));
-  EXPECT_GT(outcome.fem.contact_force_n, 0.0) << "the simulation runs on";
+  EXPECT_GT(outcome.sim.contact_force_n, 0.0) << "the simulation runs on";
   EXPECT_EQ(std::vector<std::uint8_t>(session.bscan().begin(), session.bscan().end()), held);
   for (int f = 0; f < 3; ++f) session.update(pose_at(-5.0));  // lifted, still frozen
   const render::FrameInput frame = session.frame_input(0);
@@ -222,6 +222,30 @@ TEST(SessionConvex, EverySlicerShowsTheSameSectorImage) {
   for (std::size_t m = 1; m < images.size(); ++m)
     for (std::size_t i = 0; i < images[0].size(); ++i)
       ASSERT_LE(std::abs(images[m][i] - images[0][i]), 1) << "method " << m << " pixel " << i;
+}
+
+TEST_F(SessionTest, EveryMethodCanBeSwitchedToLiveAndStartsFromTheShapeShown) {
+  Session session(tissue_, settings_, clock_, jobs_);
+  EXPECT_EQ(session.method(), sim::EngineKind::kExactFem);  // the default
+  for (int f = 0; f < 10; ++f) session.update(pose_at(0.3 * f));
+  for (const auto method :
+       {sim::EngineKind::kPcgFem, sim::EngineKind::kCorotationalFem, sim::EngineKind::kMsdsExplicit,
+        sim::EngineKind::kMsdsImplicit, sim::EngineKind::kExactFem}) {
+    const auto before_view = session.frame_input(0).mesh.node_displacement_mm;
+    const std::vector<float> before(before_view.begin(), before_view.end());
+    session.switch_method(method);
+    EXPECT_EQ(session.method(), method);
+    // The new method's first frame starts where the old one left the tissue: the skin stays
+    // under the probe (no jump back to rest), and the image still shows tissue.
+    const FrameOutcome outcome = session.update(pose_at(2.7));
+    EXPECT_TRUE(outcome.in_contact) << session.method_name();
+    EXPECT_FALSE(outcome.sim.diverged) << session.method_name();
+    const auto after = session.frame_input(1).mesh.node_displacement_mm;
+    float largest_before = 0, largest_after = 0;
+    for (float d : before) largest_before = std::max(largest_before, d);
+    for (float d : after) largest_after = std::max(largest_after, d);
+    EXPECT_NEAR(largest_after, largest_before, 0.3) << session.method_name();
+  }
 }
 
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {

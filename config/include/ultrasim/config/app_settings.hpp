@@ -15,11 +15,15 @@ namespace ultrasim::config {
 // holds each module's own defaults (the Settings structs' member initialisers), which is also what
 // an empty app.toml gives.
 struct AppSettings {
-  render::DisplaySettings display;       // [display]
-  imaging::BscanSettings bscan;          // [bscan]
-  sim::FemSettings fem;                  // [fem]
-  sim::SphereColliderSettings collider;  // [collider]
-  sched::FrameBudgetSettings frame;      // [frame]
+  render::DisplaySettings display;         // [display]
+  imaging::BscanSettings bscan;            // [bscan]
+  sim::SimSettings sim;                    // [sim]
+  sim::FemSettings fem;                    // [fem]
+  sim::ExactFemSettings exact;             // [exact]
+  sim::CorotationalSettings corotational;  // [corotational]
+  sim::MsdsSettings msds;                  // [msds]
+  sim::ProbeColliderSettings collider;     // [collider]
+  sched::FrameBudgetSettings frame;        // [frame]
 };
 
 // Reads and validates the app settings file at path. Every key is optional (missing keys keep the

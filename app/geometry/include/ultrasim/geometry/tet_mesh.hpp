@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace ultrasim::geometry {
@@ -44,6 +45,10 @@ TetMesh make_grid_tet_mesh(const GridSpec& grid);
 // Signed volume of tet (a, b, c, d): positive when (b-a, c-a, d-a) is right-handed.
 double signed_tet_volume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                          const Eigen::Vector3d& c, const Eigen::Vector3d& d);
+
+// Tets whose volume at `positions_mm` (one per node) is not positive: turned inside out.
+int count_inverted_tets(std::span<const std::array<std::int32_t, 4>> tets,
+                        std::span<const Eigen::Vector3d> positions_mm);
 
 // Triangles on the mesh boundary (faces used by exactly one tet), outward-facing. Allocates.
 std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh);

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -15,6 +16,7 @@ struct Snapshot {
   std::string bscan_png;
   std::string screen_png;
   double contact_force_n = 0.0;
+  std::string method;  // deformation method shown
 };
 
 // Everything a headless run measured.
@@ -25,14 +27,17 @@ struct RunReport {
   int mesh_tets = 0;
   int bscan_width_px = 0;
   int bscan_height_px = 0;
-  int pcg_iterations_per_frame = 0;
+  std::string method;  // deformation method at the start (engine_key)
   int threads = 1;
   int surface_triangles = 0;
   std::string slicer;
   std::int64_t frames = 0;
   std::int64_t poses_rejected = 0;
   std::int64_t frames_in_contact = 0;
-  std::int64_t solver_resets = 0;
+  std::int64_t method_switches = 0;
+  std::int64_t diverged_frames = 0;
+  std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
+  int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;
   sched::FrameTimeStats frame{0};
   sched::FrameTimeStats sim{0};

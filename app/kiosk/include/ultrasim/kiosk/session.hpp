@@ -2,8 +2,10 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "ultrasim/config/app_settings.hpp"
@@ -17,7 +19,9 @@
 #include "ultrasim/imaging/published_slicer.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
-#include "ultrasim/sim/linear_fem.hpp"
+#include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/probe_collider.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -25,8 +29,8 @@ namespace ultrasim::kiosk {
 struct FrameOutcome {
   bool pose_rejected = false;  // the sample was missing, unhealthy or non-finite: last good kept
   bool in_contact = false;     // the probe touches the tissue, so there is an image
-  sim::FemStepStats fem;
-  std::int64_t sim_us = 0;       // collision + FEM solve
+  sim::EngineStepStats sim;
+  std::int64_t sim_us = 0;       // collision + deformation
   std::int64_t slice_us = 0;     // B-scan synthesis and display mapping
   std::int64_t surfaces_us = 0;  // vessel surfaces following the tissue
 };
@@ -76,12 +80,33 @@ class Session {
   }
   const TissueCase& tissue() const { return tissue_; }
 
+  // The deformation method in use, and a live switch to another: it starts from the current
+  // shape (at rest: no velocity). The first switch to a method builds it (the exact FEM's
+  // factorisation takes about a second on the default case); later switches are instant.
+  // Throws std::invalid_argument if the method cannot be built on this case (nothing changes).
+  // Call between frames, from the frame thread.
+  sim::EngineKind method() const { return engine_->kind(); }
+  std::string_view method_name() const { return engine_->name(); }
+  void switch_method(sim::EngineKind method);
+
+  // The deformed node positions of the method in use, valid until the next update().
+  std::span<const Eigen::Vector3d> engine_positions_mm() const {
+    return engine_->deformed_positions_mm();
+  }
+
+  // The probe as the tissue feels it, at the last good pose (nullopt before any).
+  std::optional<sim::ProbeCollider> probe_collider() const;
+
  private:
   const TissueCase& tissue_;
   config::AppSettings settings_;
   const hal::Clock& clock_;
   hal::JobSystem& jobs_;
-  sim::LinearFem fem_;
+  sim::EngineSettings engine_settings_;
+  std::vector<std::uint8_t> skin_nodes_;  // the mesh's skin face: where the probe can touch
+  std::array<std::unique_ptr<sim::DeformationEngine>, 5> engines_;  // built on first use
+  sim::DeformationEngine* engine_ = nullptr;
+  hal::TimestampUs last_update_us_ = -1;
   geometry::TetLocator locator_;
   BscanControls controls_;
   imaging::ProbeGeometry probe_;         // the case's probe at the current depth

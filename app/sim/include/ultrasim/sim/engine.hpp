@@ -5,17 +5,9 @@
 #include <string_view>
 
 #include "ultrasim/sim/probe_collider.hpp"
+#include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::sim {
-
-// The deformation methods the kiosk can switch between live, on the same mesh.
-enum class EngineKind {
-  kPcgFem,           // (a) published quasi-static linear FEM, PCG with a fixed iteration budget
-  kMsdsExplicit,     // (b) published mass-spring-damper system, explicit Euler
-  kExactFem,         // (c) quasi-static linear FEM solved exactly (factor once, condense contact)
-  kCorotationalFem,  // (d) corotational linear FEM (per-tet rotation by polar decomposition)
-  kMsdsImplicit,     // (e) mass-spring-damper system, implicit Euler (stable at any step)
-};
 
 // What went wrong in a step and what the engine did about it. A step never leaves non-finite or
 // inverted garbage in the displacements it reports.

@@ -31,31 +31,6 @@ struct NormalConstraint {
   double displacement_mm = 0.0;
 };
 
-// How the probe holds the nodes it touches.
-enum class ContactModel {
-  // Gel-lubricated skin: the probe pushes along its surface normal and never pulls; nodes slide
-  // along the face. Solved exactly by an active set within the frame (Hertz's assumption).
-  kFrictionless,
-  // The published collider: a node inside the probe is held at its push-out point, all three
-  // axes, as long as it stays inside (what the PCG FEM does; use it to compare the two).
-  kStick,
-};
-
-struct ExactFemSettings {
-  ContactModel contact = ContactModel::kFrictionless;
-  // Active-set rounds per frame for frictionless contact (release pulling nodes, add
-  // penetrating ones). The set from the last frame is the start, so a moving probe needs 1-3.
-  int max_contact_rounds = 8;
-  // Nodes not among the contact candidates whose K⁻¹ columns (3 each, free-DOF length, double)
-  // are kept between frames; one that comes into contact costs 3 solves with the factor. Nodes in
-  // the current frame's set are never evicted, so the cache may exceed this meanwhile.
-  int max_cached_nodes = 256;
-  // A linear model pressed hard inverts a few tets under the probe's rim long before the answer
-  // is useless; a probe pushed through the tissue inverts many. Above this fraction of all tets
-  // the frame is rejected and the last good shape kept; below, the count is only reported.
-  double max_inverted_fraction = 0.005;
-};
-
 // What one solve did. Counters, not clocks (app/sim reads no clock): the costly work is the
 // factorisation and Green's functions (once, at construction) and solves with the factor.
 struct ExactFemStepStats {
@@ -175,7 +150,6 @@ class ExactFem final : public DeformationEngine {
   // One round of the frictionless active set on rows_; true when the set or a plane changed.
   bool update_active_set(const ProbeCollider& probe, bool skin_only);
   void update_deformed();
-  int count_inverted_tets() const;
 
   ExactFemSettings settings_;
   hal::JobSystem* jobs_ = nullptr;

@@ -2,11 +2,14 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 #include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
 #include "ultrasim/sim/sphere_collider.hpp"
 
@@ -27,7 +30,9 @@ struct FemStepStats {
 // fixed nodes are Dirichlet constraints; CG runs on the free degrees of freedom only.
 //
 // Units: positions mm, moduli kPa, so K u is in mN. Single-threaded; step() does not allocate.
-class LinearFem {
+// As a DeformationEngine (the kiosk's method (a)): probe contact by any ProbeCollider shape, and a
+// press so deep that more than max_inverted_fraction of the tets invert keeps the last good shape.
+class LinearFem final : public DeformationEngine {
  public:
   // tet_materials: one material per tet; fixed_nodes: one flag per node (nonzero = fixed).
   // Throws std::invalid_argument when no node is fixed (the stiffness would be singular), a tet
@@ -46,11 +51,19 @@ class LinearFem {
   // Step with nothing touching the tissue (probe lifted): tissue relaxes toward rest.
   FemStepStats step_without_contact();
 
+  // DeformationEngine (frame_dt_s is ignored: quasi-static).
+  EngineKind kind() const override { return EngineKind::kPcgFem; }
+  std::string_view name() const override { return "PCG FEM (published)"; }
+  EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  const Eigen::VectorXd& displacements_mm() const override { return u_; }
+  // Warm start from this shape; the probe's contacts are found afresh at the next step.
+  void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
+
   // Nodal forces K u on node n, mN: the reaction where the node is constrained, ~0 where free.
   Eigen::Vector3d nodal_force_mn(int node) const;
 
   // Deformed node positions (rest + displacement), mm; valid until the next step.
-  std::span<const Eigen::Vector3d> deformed_positions_mm() const { return deformed_; }
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
   // Displacement of node n, mm.
   Eigen::Vector3d displacement_mm(int node) const { return u_.segment<3>(3 * node); }
 
@@ -64,10 +77,11 @@ class LinearFem {
   int fixed_node_count() const { return fixed_count_; }
 
  private:
-  void apply_collider(const SphereCollider* collider);
+  FemStepStats step_probe(const ProbeCollider* probe);
+  void apply_collider(const ProbeCollider* collider);
   FemStepStats run_pcg(int max_iterations, double tolerance);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
-  double update_contact_forces(const SphereCollider* collider);
+  double update_contact_forces();
   void update_deformed();
 
   FemSettings settings_;
@@ -78,8 +92,9 @@ class LinearFem {
   std::vector<double> contact_push_mn_;  // per node: probe's push along its outward normal
   std::vector<std::uint8_t> only_held_by_adhesion_;  // touching, not inside: may be let go
   std::vector<Eigen::Vector3d> u_before_contact_;    // where a let-go node returns to
-  SphereCollider last_collider_;
-  bool has_collider_ = false;
+  std::vector<Eigen::Vector3d> contact_normal_;      // probe's outward normal at each contact
+  std::vector<std::array<std::int32_t, 4>> tets_;
+  Eigen::VectorXd last_good_u_;
   int fixed_count_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness_;
   Eigen::VectorXd inverse_diagonal_;

@@ -20,6 +20,10 @@ struct FemSettings {
   int pcg_iterations_per_frame = 20;
   // Stop early when the residual norm falls below this fraction of the right-hand side norm.
   double relative_tolerance = 1e-8;
+  // A linear model pressed hard inverts a few tets under the probe's rim long before its answer
+  // is useless; a probe pushed through the tissue inverts many. Above this fraction of all tets
+  // the frame is rejected and the last good shape kept.
+  double max_inverted_fraction = 0.005;
 };
 
 // The published mass-spring-damper system (MSDS): every tet edge a spring, duplicates merged by
@@ -32,9 +36,17 @@ struct MsdsSettings {
   double damping_per_stiffness_s = 0.1;
   // Tissue density for the lumped nodal masses, kg/m³ (soft tissue ≈ water).
   double density_kg_per_m3 = 1000.0;
-  // Integration step and steps per frame (published: 0.002-0.01 s, 20-40 steps).
+  // Integration step and steps per frame (published: 0.002-0.01 s, 20-40 steps). The simulated
+  // time per frame is steps × dt, for both integrators.
   double time_step_s = 0.005;
   int steps_per_frame = 20;
+  // Explicit Euler with physical masses is stable only below ~1e-7-1e-6 s on tissue meshes (the
+  // stiffest spring over the lightest node); the published step is 10^4-10^5 times that. As
+  // explicit FE codes do, raise each free node's mass just enough for time_step_s to be stable
+  // (mass scaling): the static answer is unchanged, the motion slower. false: physical masses.
+  bool scale_mass_for_explicit_step = true;
+  // Implicit Euler is stable at any step: it covers the frame's simulated time in this many steps.
+  int implicit_steps_per_frame = 2;
 };
 
 // Corotational linear FEM: per-tet rotation extracted by polar decomposition each frame, the
@@ -44,10 +56,57 @@ struct CorotationalSettings {
   double relative_tolerance = 1e-8;
 };
 
-// The published probe collider: a sphere whose lowest point is the centre of the transducer face;
-// mesh nodes inside it are pushed out to its surface.
-struct SphereColliderSettings {
-  double radius_mm = 30.0;  // larger: flatter, more probe-like contact; smaller: a fingertip
+// The deformation methods the kiosk can switch between live, on the same mesh.
+enum class EngineKind {
+  kPcgFem,           // (a) published quasi-static linear FEM, PCG with a fixed iteration budget
+  kMsdsExplicit,     // (b) published mass-spring-damper system, explicit Euler
+  kExactFem,         // (c) quasi-static linear FEM solved exactly (factor once, condense contact)
+  kCorotationalFem,  // (d) corotational linear FEM (per-tet rotation by polar decomposition)
+  kMsdsImplicit,     // (e) mass-spring-damper system, implicit Euler (stable at any step)
+};
+
+// Which deformation method runs.
+struct SimSettings {
+  EngineKind method = EngineKind::kExactFem;
+};
+
+// How the exact FEM's probe holds the nodes it touches.
+enum class ContactModel {
+  // Gel-lubricated skin: the probe pushes along its surface normal and never pulls; nodes slide
+  // along the face. Solved exactly by an active set within the frame (Hertz's assumption).
+  kFrictionless,
+  // The published collider: a node inside the probe is held at its push-out point, all three
+  // axes, as long as it stays inside (what the PCG FEM does; use it to compare the two).
+  kStick,
+};
+
+// The exact quasi-static FEM (factor once, condense the probe's contact).
+struct ExactFemSettings {
+  ContactModel contact = ContactModel::kFrictionless;
+  // Active-set rounds per frame for frictionless contact (release pulling nodes, add
+  // penetrating ones). The set from the last frame is the start, so a moving probe needs 1-3.
+  int max_contact_rounds = 8;
+  // Nodes not among the contact candidates whose K⁻¹ columns (3 each, free-DOF length, double)
+  // are kept between frames; one that comes into contact costs 3 solves with the factor. Nodes in
+  // the current frame's set are never evicted, so the cache may exceed this meanwhile.
+  int max_cached_nodes = 256;
+  // As FemSettings::max_inverted_fraction.
+  double max_inverted_fraction = 0.005;
+};
+
+// The probe as the tissue feels it.
+enum class ProbeContactShape {
+  kSphere,  // the published collider: a sphere whose lowest point is the transducer face's centre
+  kFace,    // the transducer face: a rounded box (linear probe) or cylinder section (convex)
+};
+
+struct ProbeColliderSettings {
+  ProbeContactShape shape = ProbeContactShape::kFace;
+  double radius_mm = 30.0;  // sphere: larger, flatter contact; smaller, a fingertip
+  // Face: its extent across the scan plane (elevation) and the rounding of its edges; its width
+  // (and a convex face's radius) come from the case's probe.
+  double face_thickness_mm = 10.0;
+  double edge_radius_mm = 2.0;
 };
 
 }  // namespace ultrasim::sim

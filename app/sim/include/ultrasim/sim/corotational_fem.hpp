@@ -1,0 +1,211 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/contact.hpp"
+#include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/settings.hpp"
+
+namespace ultrasim::sim {
+
+// What solve_to_convergence() did.
+struct CorotationalConvergence {
+  bool converged = false;       // the last rotation update moved no node by tolerance or more
+  int outer_iterations = 0;     // rotation updates (each followed by a linear solve)
+  int pcg_iterations = 0;       // over all outer iterations
+  double last_change_mm = 0.0;  // largest nodal displacement change of the last outer iteration
+  EngineStepStats stats;        // of the final state, as step() reports it
+};
+
+// Quasi-static corotational linear FEM ("stiffness warping", Müller & Gross 2004, element-based).
+// Each tet keeps the linear stiffness K_e of LinearFem (tet_stiffness()) but applies it in its own
+// rotated frame: with R the rotation of the tet's deformation gradient (polar decomposition),
+// the force that holds the tet's nodes at x is f_e = R K_e (Rᵀ x − x0). Rigid rotations therefore
+// cost no energy, which is what keeps large rotations from inflating the tissue as linear FEM
+// (Cauchy strain) does.
+//
+// Each frame: contacts are found on the last frame's shape (nodes inside the probe are held at
+// the collider's push-out target; fixed nodes at rest), every tet's rotation is extracted from
+// the shape with those nodes moved, the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a
+// block-sparse matrix whose pattern and scatter map were built once, and K_R u = Σ R K_e (x0 −
+// Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with a fixed iteration
+// budget, warm-started from the last frame. So each frame's rotations lag its solve by one
+// frame; solve_to_convergence() repeats rotations and solves until the shape stops changing:
+// the reference the per-frame method's lag is measured against.
+//
+// Units: mm, kPa, mN. With a JobSystem, the per-tet rotations, the assembly and the CG vector
+// work are split into fixed chunks; every sum is taken in chunk order, so results are bitwise the
+// same with and without jobs, whatever the thread count. step() does not allocate.
+class CorotationalFem final : public DeformationEngine {
+ public:
+  // tet_materials: one per tet; fixed_nodes: one flag per node (nonzero = held at rest).
+  // Throws std::invalid_argument when no node is fixed ("... singular ..."), a tet references a
+  // node outside the mesh or has no positive rest volume, a material is out of its physical
+  // range, or the settings are out of range; std::logic_error if its element stiffness ever
+  // stops matching tet_stiffness() (a model change made in one place only). Allocates.
+  CorotationalFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
+                  std::span<const std::uint8_t> fixed_nodes, const CorotationalSettings& settings,
+                  hal::JobSystem* jobs = nullptr);
+
+  EngineKind kind() const override { return EngineKind::kCorotationalFem; }
+  std::string_view name() const override { return "corotational FEM"; }
+
+  // One frame: contacts, rotations, assembly, pcg_iterations_per_frame CG iterations.
+  // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
+  // surface, are held at its push-out target; nodes it pushed on last frame stay on its surface
+  // as it lifts, until holding them would take a pull; nodes it had to pull on are let go.
+  // Recovery: a frame may not leave more inverted tets than the shape it started from had, nor
+  // a non-finite value. Such a frame is cut short along its update (1/2, 1/4, ... of it), or all
+  // the way back to the previous frame's shape, and reports diverged with Recovery::kSubstepped;
+  // inverted_tets then counts the rejected result's inverted tets. Tets with all four nodes held
+  // (pressed flat between contacts) are the constraints' doing: they are counted in
+  // inverted_tets but never make a frame diverge. Nothing resets to rest: with the probe still
+  // deep in the tissue, rest would put nodes far inside it. frame_dt_s is ignored.
+  EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+
+  const Eigen::VectorXd& displacements_mm() const override { return u_; }
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
+
+  // Live switch. Fixed nodes stay at zero. Throws std::invalid_argument when u_mm does not have
+  // 3 × node count entries or holds a non-finite value.
+  void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
+
+  // Holds a node at a displacement (mm) from the next step or solve on, until released; ignored
+  // for fixed nodes. For boundary-value tests (patch tests, a cantilever's tip). Does not
+  // allocate. Throws std::out_of_range for a node outside the mesh.
+  void prescribe_displacement(int node, const Eigen::Vector3d& displacement_mm);
+  void release_displacement(int node);
+
+  // External force on a node, mN, fixed in direction (a dead load), from the next step or solve
+  // on; ignored on fixed nodes. For tests (a loaded cantilever). Throws std::out_of_range for a
+  // node outside the mesh, std::invalid_argument for a non-finite force.
+  void set_nodal_load(int node, const Eigen::Vector3d& force_mn);
+  void clear_nodal_loads();
+
+  // The converged corotational answer for the current constraints (fixed, prescribed, and the
+  // last step's contacts held at their targets): repeats rotation extraction and a linear solve
+  // (CG to a relative residual of 1e-12) until no node moves by `tolerance_mm` or more, or
+  // `max_outer` rotation updates. For tests and accuracy reports; does not allocate.
+  CorotationalConvergence solve_to_convergence(double tolerance_mm, int max_outer);
+
+  // The force each node needs from outside to hold the tissue at `positions_mm`, mN, node-major
+  // x,y,z: Σ R K_e (Rᵀ x − x0) with every tet's rotation taken from those positions. Zero for a
+  // rigid motion of the whole mesh; at equilibrium, the load where nodes are loaded, the
+  // reaction where they are held, zero elsewhere. `forces_mn` is resized to 3 × node count.
+  // Serial; for tests and reports.
+  void elastic_forces_mn(std::span<const Eigen::Vector3d> positions_mm,
+                         Eigen::VectorXd& forces_mn) const;
+
+  // Tets whose volume at the current shape is not positive.
+  int inverted_tet_count() const;
+
+  // The warped stiffness of the last assembly (before the first step: the rest stiffness, which
+  // equals LinearFem's), as an Eigen matrix. Allocates; for tests.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> warped_stiffness() const;
+
+  // Rotation of tet t at the last assembly.
+  const Eigen::Matrix3d& tet_rotation(int t) const { return rotation_[t]; }
+
+  int node_count() const { return static_cast<int>(rest_.size()); }
+  int tet_count() const { return static_cast<int>(tets_.size()); }
+  int fixed_node_count() const { return fixed_count_; }
+  // Node blocks (3×3) stored in the warped stiffness: its pattern, fixed at construction.
+  int stiffness_block_count() const { return static_cast<int>(block_col_.size()); }
+
+ private:
+  // Setup (allocates).
+  void validate_and_precompute_tets(const geometry::TetMesh& mesh,
+                                    std::span<const Material> tet_materials);
+  // Throws std::logic_error when tet t's gradient-form stiffness is not tet_stiffness().
+  void check_against_linear_fem(int t, const Material& m) const;
+  void build_pattern_and_scatter_map();
+
+  // One frame's pieces (no allocation).
+  // Finds this frame's contacts, then holds the constrained nodes.
+  void apply_constraints(const ProbeCollider* probe);
+  // Appends last frame's pushed nodes that the probe has moved away from, on its surface.
+  void add_followers(const ProbeCollider& probe);
+  // Drops the followers (contacts_ from first_follower on) that holding would need a pull for.
+  void let_go_of_followers_that_would_pull(int first_follower);
+  // K_R u − b at a node with the last assembly: the force holding it there, mN.
+  Eigen::Vector3d node_force_mn(int node) const;
+  // Marks fixed, prescribed and contact nodes held and puts them at their displacements.
+  void hold_constrained_nodes();
+  void update_rotations();
+  void assemble_warped_system();
+  struct PcgResult {
+    int iterations = 0;
+    double relative_residual = 0.0;
+  };
+  PcgResult run_pcg(int max_iterations, double tolerance);
+  // |Σ reaction over the contacts|, N; stores each contact's push for the next frame.
+  double measure_contact_forces();
+  // Accepts the new shape, or recovers from a non-finite or inverting one; fills the stats.
+  void accept_or_recover(EngineStepStats& stats);
+  void update_deformed();
+  struct InversionCount {
+    int total = 0;
+    int with_free_node = 0;  // the solver's doing; tets with all four nodes held are not
+  };
+  InversionCount count_inverted(const Eigen::VectorXd& u) const;
+
+  // Runs body(chunk) for chunk in [0, chunks): on the job system when there is one.
+  template <typename Body>
+  void for_each_chunk(int chunks, Body&& body) const;
+  int tet_chunks() const;
+  int node_chunks() const;
+  // Sums chunk_sums_[0, chunks) in chunk order: the same order on any thread count.
+  Eigen::Vector4d sum_chunks(int chunks) const;
+
+  CorotationalSettings settings_;
+  hal::JobSystem* jobs_ = nullptr;
+
+  // Mesh and material data, fixed at construction.
+  std::vector<Eigen::Vector3d> rest_;
+  std::vector<geometry::Tet> tets_;
+  std::vector<std::uint8_t> fixed_;
+  int fixed_count_ = 0;
+  // Per tet: the shape functions' gradients at rest (columns, one per node) and (λV, μV). They
+  // give tet_stiffness()'s blocks K_ab = V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I), which the
+  // constructor checks; with R g in place of g, the warped blocks R K_ab Rᵀ.
+  std::vector<Eigen::Matrix<double, 3, 4>> shape_gradients_;
+  std::vector<Eigen::Vector2d> lame_volume_;
+
+  // Warped stiffness, block CSR over nodes: row n's blocks are [block_row_start_[n],
+  // block_row_start_[n+1]), columns block_col_ ascending, values block_value_.
+  std::vector<int> block_row_start_;
+  std::vector<int> block_col_;
+  std::vector<int> diagonal_block_;  // per node: index of its diagonal block
+  std::vector<int> mirror_block_;    // per block below the diagonal: its mirror above; else −1
+  std::vector<Eigen::Matrix3d> block_value_;
+  // Scatter map, stored gather-wise so rows assemble in parallel without races: global block k
+  // (on or above the diagonal) sums the element blocks contribution_[contribution_start_[k] ..
+  // [k+1]), each encoded as tet × 16 + a × 4 + b.
+  std::vector<int> contribution_start_;
+  std::vector<std::int32_t> contribution_;
+
+  // Per-frame state.
+  std::vector<Eigen::Matrix3d> rotation_;                       // per tet
+  std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
+  std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
+  Eigen::VectorXd u_, rhs_, inverse_diagonal_;
+  Eigen::VectorXd r_, z_, p_, q_, u_before_step_;
+  std::vector<std::uint8_t> held_;  // fixed, prescribed or in contact this frame
+  std::vector<std::uint8_t> prescribed_;
+  std::vector<Eigen::Vector3d> prescribed_u_;
+  Eigen::VectorXd load_mn_;  // dead nodal loads, node-major
+  std::vector<NodeContact> contacts_;
+  std::vector<double> contact_push_mn_;  // per node: last frame's push along the probe's normal
+  std::vector<Eigen::Vector3d> deformed_;
+  // Per chunk partial sums of a pass (dot products, counts), combined by sum_chunks().
+  mutable std::vector<Eigen::Vector4d> chunk_sums_;
+};
+
+}  // namespace ultrasim::sim

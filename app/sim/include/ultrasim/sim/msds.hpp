@@ -1,0 +1,253 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/contact.hpp"
+#include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/probe_collider.hpp"
+#include "ultrasim/sim/settings.hpp"
+
+namespace ultrasim::sim {
+
+// One spring of the mass-spring-damper system: a unique tet edge.
+struct MsdsSpring {
+  std::int32_t a = 0;  // node indices, a < b
+  std::int32_t b = 0;
+  double rest_length_mm = 0.0;
+  // Σ over the tets sharing the edge of E_tet × stiffness_per_modulus_mm (kPa·mm = mN/mm).
+  double stiffness_mn_per_mm = 0.0;
+  // stiffness × damping_per_stiffness_s, mN·s/mm; acts on the relative velocity along the spring.
+  double damping_mn_s_per_mm = 0.0;
+};
+
+// How the MSDS advances in time.
+enum class MsdsIntegrator {
+  kExplicitEuler,  // (b) as published: forward Euler; stable only below the bound below
+  kImplicitEuler,  // (e) backward Euler, linearised each step (Baraff & Witkin 1998); any step
+};
+
+// Gershgorin bound on the largest eigenvalue ω² of M⁻¹K (1/s²), K the springs linearised about
+// the rest positions, over the free DOFs: the largest absolute row sum of M⁻¹K. `pinned` flags
+// nodes that never move (their rows and columns drop out). See msds.cpp for the derivation.
+double msds_max_omega_squared_bound(std::span<const Eigen::Vector3d> rest_positions_mm,
+                                    std::span<const MsdsSpring> springs,
+                                    std::span<const double> node_masses_kg,
+                                    std::span<const std::uint8_t> pinned);
+
+// The largest ω² (1/s²) whose mode forward Euler keeps stable at `time_step_s`: the inverse of
+// forward_euler_stable_time_step_s. 0 when no mode is (dt ≥ β, or β = 0).
+double msds_max_stable_omega_squared(double time_step_s, double damping_per_stiffness_s);
+
+// Largest forward-Euler step (s) that keeps a mode of angular frequency² `omega_squared` stable
+// when the damping is stiffness-proportional (C = β K, β = damping_per_stiffness_s):
+//   β ω ≤ 2 (underdamped):  dt ≤ β
+//   β ω > 2 (overdamped):   dt ≤ 4 / (β ω² + ω √(β² ω² − 4))   (≈ 2 / (β ω²) when β ω ≫ 2)
+// Non-increasing in ω², so the bound of the stiffest mode is the bound of the system. β = 0
+// gives 0: forward Euler is unconditionally unstable on an undamped oscillator.
+double forward_euler_stable_time_step_s(double omega_squared, double damping_per_stiffness_s);
+
+// The mass-spring-damper system (MSDS) on a tet mesh: every unique tet edge a linear spring of
+// rest length = edge length with damping along it; each tet sharing the edge adds
+// k = E_tet × stiffness_per_modulus_mm and c = k × damping_per_stiffness_s. Lumped masses: a
+// quarter of each tet's volume × density to each of its nodes.
+//
+// A frame is steps_per_frame steps of time_step_s (as published: the simulated time per frame is
+// steps × dt whatever the frame lasted; frame_dt_s is ignored). Each step, as published, first
+// puts the free nodes inside the probe on its surface (find_contacts) and holds them there for the
+// step with zero velocity (the probe is still within a frame); a node only touching the surface
+// whose springs pull it away from the probe is let go (the probe can push, not pull). Fixed nodes
+// never move.
+//
+// Divergence: an attempt at the frame stops at the first step that leaves a non-finite value,
+// kinetic energy above kinetic_energy_ceiling_uj() or inverted tets (counted after every implicit
+// step but the first, every 4th explicit one and the last: the first step takes the probe's whole
+// move since the last frame and may fold tets under it for that one step). The frame is then re-run
+// from its start with the step halved, up to kMaxHalvings times (Recovery::kSubstepped); if every
+// try fails, the tissue is reset to rest (Recovery::kReset). Both set diverged; inverted_tets
+// counts the first attempt's inverted tets (0 when accepted: an accepted frame has none). The
+// displacements shown are always finite. Each frame starts again at time_step_s: a step past the
+// limit is caught again, every few frames.
+//
+// Forward Euler past its limit, in the overdamped regime of soft tissue (β ω ≫ 2), blows up a
+// mode that is nearly all velocity (positions move by v·dt): the kinetic energy grows ~3× a step
+// while the shape stays sane, and the ceiling catches it within a frame or two. The tissue's
+// overdamped modes all relax with time constant damping_per_stiffness_s (0.1 s published).
+// The published step (5 ms) is 10³–10⁵× the explicit limit with physical masses (7e-8 s on a
+// 32×16×16 grid of soft tissue): there the explicit engine resets every frame the probe touches,
+// and at a stable step it simulates microseconds a frame, too little to follow a moving probe.
+// The implicit one is the usable MSDS; it is stable with any steps_per_frame, 1 included.
+//
+// Units: mm, kPa, mN, kg, s (mN = kg·mm/s²); energies in µJ (mN·mm). With a JobSystem the force
+// gathering, the implicit solver's vector work and the inversion count are split into fixed node
+// (spring, tet) chunks; each node gathers its own springs and every sum is taken in chunk order,
+// so results are bitwise the same with and without jobs, whatever the thread count. step() does
+// not allocate.
+class MsdsEngine final : public DeformationEngine {
+ public:
+  // Frame re-runs with the step halved before giving up and resetting to rest.
+  static constexpr int kMaxHalvings = 4;
+  // Implicit Euler: Jacobi-preconditioned CG per step, warm-started from the current velocity,
+  // stopped at a fraction of the right-hand side or when the residual force (residual / dt) is
+  // below kCgForceFloorMn in all (the spring forces' rounding, for stiff tissue on large meshes).
+  // Measured on a 32×16×16 grid under a sweeping probe: 1e-3 stays within 0.013 mm of a 1e-10
+  // solve for 1 to 20 steps a frame, at a third to a quarter of the iterations of 1e-6.
+  static constexpr int kMaxCgIterationsPerStep = 200;
+  static constexpr double kCgRelativeTolerance = 1e-3;
+  static constexpr double kCgForceFloorMn = 1e-6;
+
+  // tet_materials: one per tet; fixed_nodes: one flag per node (nonzero = held at rest).
+  // Throws std::invalid_argument when no node is fixed ("... singular ..."), a tet references a
+  // node outside the mesh or has no positive rest volume, a material is out of its physical
+  // range, or a setting is out of range. Allocates (every buffer step() needs).
+  MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
+             std::span<const Material> tet_materials, std::span<const std::uint8_t> fixed_nodes,
+             const MsdsSettings& settings, hal::JobSystem* jobs = nullptr);
+  MsdsEngine(const MsdsEngine&) = delete;
+  MsdsEngine& operator=(const MsdsEngine&) = delete;
+
+  EngineKind kind() const override;
+  std::string_view name() const override;
+  // stats: iterations = integration steps (explicit) or CG iterations (implicit) of the accepted
+  // run; relative_residual = the largest final CG residual of its steps (implicit); contact_nodes
+  // and contact_force_n = the nodes held on the probe after the last step and |Σ| of the spring
+  // and damping forces the probe balances on them.
+  EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  const Eigen::VectorXd& displacements_mm() const override { return u_; }
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return x_; }
+  // Live switch: starts from u with zero velocity; fixed nodes stay at rest. Throws
+  // std::invalid_argument when u_mm does not have 3 × node count entries or is not finite.
+  void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
+
+  // Runs `steps` integration steps of `dt_s` (with the probe's contact) and nothing else: no
+  // divergence check, no recovery. For measuring stability limits in tests and benches.
+  void integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps);
+
+  // The explicit step's stability bound for this mesh and these settings, s:
+  // forward_euler_stable_time_step_s(msds_max_omega_squared_bound(...), damping_per_stiffness_s).
+  // Holds for the linearisation about rest and for stretched springs; a spring compressed below
+  // half its rest length has a (negative) transverse stiffness beyond k and can need less.
+  double explicit_stable_time_step_s() const;
+  // Total free mass over the physical one: > 1 when scale_mass_for_explicit_step raised masses.
+  double mass_scale() const { return mass_scale_; }
+
+  // Spring + damping force on every node at the current state, mN, node-major x,y,z (pinned nodes
+  // included: there it is what holds them). Resizes `forces_mn`; serial; for tests and reports.
+  void internal_forces_mn(Eigen::VectorXd& forces_mn) const;
+  double kinetic_energy_uj() const;
+  double elastic_energy_uj() const;
+  // Kinetic energy no sane frame reaches: the elastic energy of every spring strained by 100%.
+  double kinetic_energy_ceiling_uj() const { return kinetic_energy_ceiling_uj_; }
+  int inverted_tet_count() const;
+
+  std::span<const MsdsSpring> springs() const { return springs_; }
+  std::span<const double> node_masses_kg() const { return mass_kg_; }
+  std::span<const Eigen::Vector3d> velocities_mm_per_s() const { return v_; }
+  const MsdsSettings& settings() const { return settings_; }
+  MsdsIntegrator integrator() const { return integrator_; }
+  int node_count() const { return static_cast<int>(rest_.size()); }
+
+ private:
+  struct StepResult {
+    bool finite = true;
+    double kinetic_energy_uj = 0.0;
+    int cg_iterations = 0;
+    double cg_relative_residual = 0.0;
+  };
+  struct AttemptResult {
+    bool accepted = false;
+    int inverted_tets = 0;
+    int iterations = 0;  // integration steps (explicit) or CG iterations (implicit)
+    double relative_residual = 0.0;
+  };
+
+  // Setup (allocates).
+  void build_springs(const geometry::TetMesh& mesh, std::span<const Material> tet_materials);
+  void build_masses(const geometry::TetMesh& mesh);
+  void scale_masses_to_time_step();
+  void build_adjacency();
+  void size_buffers();
+
+  // One frame's pieces (no allocation).
+  AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
+  int count_inverted_tets();  // inverted_tet_count() on the job system
+  // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
+  StepResult advance(const ProbeCollider* probe, double dt_s);
+  void clear_contacts();
+  void apply_contacts(const ProbeCollider* probe);
+  void release_if_pulled_away(int node, const Eigen::Vector3d& force_mn);
+  // Every spring's elastic and damping force at the current state (and, implicit, its block).
+  void compute_spring_forces(double dt_s);
+  // A node's share of those: Σ ± over its springs, in adjacency order.
+  void sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
+  StepResult explicit_euler_update(double dt_s);
+  StepResult implicit_euler_update(double dt_s);
+  // h·C_s + h²·K_s of one spring (3×3), the transverse stiffness clamped at ≥ 0.
+  static Eigen::Matrix3d implicit_spring_block(const MsdsSpring& spring, const Eigen::Vector3d& dir,
+                                               double length_mm, double h);
+  // Row `node` of (M + h C + h² K) times p.
+  Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p) const;
+  StepResult finish_implicit_update(double dt_s);
+  double contact_force_n() const;
+  int held_node_count() const;
+  void reset_to_rest();
+  void update_displacements();
+
+  // Spring + damping force on one node from its springs, at the current state (computed afresh).
+  void gather_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
+  // Unit vector from node `from` to the spring's other node (the rest direction if collapsed),
+  // and the spring's current length.
+  Eigen::Vector3d spring_direction(int from, int to, double rest_length_mm,
+                                   double& length_mm) const;
+  bool moves(int node) const { return pinned_[node] == 0 && held_[node] == 0; }
+
+  // Runs body(chunk) for chunk in [0, count), on the job system when there is one.
+  template <typename Body>
+  void for_each_chunk(int count, Body&& body);
+  // Σ of the first `chunks` partial sums, in chunk order (identical with and without jobs).
+  double sum_partials(const std::vector<double>& partials, int chunks) const;
+  // The kinetic energy and finiteness an update pass left in the node chunks' partials.
+  StepResult gather_update_result() const;
+  int node_chunk_count() const;
+
+  MsdsIntegrator integrator_;
+  MsdsSettings settings_;
+  hal::JobSystem* jobs_ = nullptr;
+  std::vector<Eigen::Vector3d> rest_;
+  std::vector<geometry::Tet> tets_;
+  std::vector<std::uint8_t> pinned_;  // fixed, or in no tet (no mass): never moves
+  std::vector<MsdsSpring> springs_;
+  std::vector<double> mass_kg_;
+  double kinetic_energy_ceiling_uj_ = 0.0;
+  double mass_scale_ = 1.0;
+  // Node → springs (CSR), each entry with the spring's other node, in spring order.
+  std::vector<int> adjacency_begin_;
+  std::vector<int> adjacency_spring_;
+  std::vector<int> adjacency_other_;
+  std::vector<double> adjacency_sign_;  // +1 where the node is the spring's a, −1 where b
+
+  // State.
+  std::vector<Eigen::Vector3d> x_;  // deformed positions, mm
+  std::vector<Eigen::Vector3d> v_;  // velocities, mm/s
+  Eigen::VectorXd u_;               // x − rest, node-major; refreshed at the end of a step
+
+  // Per-step and per-frame scratch, sized once.
+  std::vector<Eigen::Vector3d> x_frame_start_, v_frame_start_;
+  std::vector<Eigen::Vector3d> spring_elastic_mn_, spring_damping_mn_;  // per spring, on a
+  std::vector<NodeContact> contacts_;
+  std::vector<std::uint8_t> held_;           // contact held on the probe surface this step
+  std::vector<std::uint8_t> touching_only_;  // contact on the surface, not inside: may be let go
+  std::vector<Eigen::Vector3d> contact_normal_;  // the probe's outward normal at a contact
+  // Implicit Euler: per spring h·C_s + h²·K_s (3×3), the system's inverse diagonal, CG vectors.
+  std::vector<Eigen::Matrix3d> spring_block_;
+  std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_;
+  std::vector<double> partial_a_, partial_b_, partial_c_;
+  std::vector<std::uint8_t> partial_finite_;
+};
+
+}  // namespace ultrasim::sim

@@ -1,0 +1,770 @@
+#include "ultrasim/sim/corotational_fem.hpp"
+
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "ultrasim/sim/linear_fem.hpp"
+
+namespace ultrasim::sim {
+
+namespace {
+
+// Work is split into chunks of fixed size, not one per thread, so that sums come out in the same
+// order on any thread count (and chunks are big enough to amortise a task's dispatch).
+constexpr int kTetsPerChunk = 256;
+constexpr int kNodesPerChunk = 64;
+// A node left exactly on the probe's surface last frame is still in contact (find_contacts).
+constexpr double kContactToleranceMm = 1e-6;
+// An inverting frame is retried at 1/2, 1/4, ... of its update, this many times.
+constexpr int kMaxBacktracks = 10;
+// The linear solves of solve_to_convergence() are run to this relative residual.
+constexpr double kConvergedRelativeResidual = 1e-12;
+
+int encode_contribution(int tet, int a, int b) {
+  return 16 * tet + 4 * a + b;
+}
+
+void check_material(const Material& m) {
+  if (!(m.youngs_modulus_kpa > 0) || !std::isfinite(m.youngs_modulus_kpa)) {
+    throw std::invalid_argument("material '" + m.name + "': youngs_modulus_kpa must be > 0");
+  }
+  if (!(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5)) {
+    throw std::invalid_argument("material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
+  }
+}
+
+Eigen::Matrix3d edge_matrix(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
+                            const Eigen::Vector3d& x2, const Eigen::Vector3d& x3) {
+  Eigen::Matrix3d e;
+  e << x1 - x0, x2 - x0, x3 - x0;
+  return e;
+}
+
+// The proper rotation closest to f (maximising tr(Rᵀ f) over det R = +1), by SVD: for an inverted
+// f the column of U belonging to the smallest singular value is flipped, so the rotation never
+// becomes a reflection (Irving et al. 2004). Slow (~1 µs); only for degenerate or inverted tets.
+Eigen::Matrix3d rotation_by_svd(const Eigen::Matrix3d& f) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(f, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d u = svd.matrixU();
+  const Eigen::Matrix3d& v = svd.matrixV();
+  if ((u * v.transpose()).determinant() < 0.0) u.col(2) = -u.col(2);  // singular values descend
+  return u * v.transpose();
+}
+
+// Polar rotation of a well-conditioned f with det f > 0, by Higham's scaled Newton iteration
+// X ← (γX + X⁻ᵀ/γ)/2, which converges quadratically to the orthogonal polar factor (a rotation,
+// since the determinant keeps its sign): 3-5 iterations, 4× faster than an SVD.
+Eigen::Matrix3d rotation_by_newton(const Eigen::Matrix3d& f) {
+  constexpr int kMaxIterations = 30;
+  Eigen::Matrix3d x = f;
+  bool scaled = true;
+  for (int k = 0; k < kMaxIterations; ++k) {
+    Eigen::Matrix3d cofactor;  // X⁻ᵀ det X
+    cofactor.col(0) = x.col(1).cross(x.col(2));
+    cofactor.col(1) = x.col(2).cross(x.col(0));
+    cofactor.col(2) = x.col(0).cross(x.col(1));
+    const double inverse_det = 1.0 / x.col(0).dot(cofactor.col(0));
+    Eigen::Matrix3d next;
+    if (scaled) {
+      // Frobenius-norm scaling balances X and X⁻ᵀ so a large stretch does not slow the start;
+      // near convergence γ → 1 and the square roots are not worth their cost.
+      const double gamma = std::sqrt(
+          std::sqrt(cofactor.squaredNorm() * inverse_det * inverse_det / x.squaredNorm()));
+      next = (0.5 * gamma) * x + (0.5 * inverse_det / gamma) * cofactor;
+      scaled = std::abs(gamma - 1.0) > 1e-3;
+    } else {
+      next = 0.5 * x + (0.5 * inverse_det) * cofactor;
+    }
+    const double change = (next - x).squaredNorm();
+    x = next;
+    if (change < 1e-14) break;  // quadratic: the error is now ~(1e-7)² / 2
+  }
+  return x;
+}
+
+// Rotation of the deformation gradient f, robust to inverted and collapsed tets.
+Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
+  if (!f.allFinite()) return Eigen::Matrix3d::Identity();
+  const double mean_square_stretch = f.squaredNorm() / 3.0;
+  const double well_conditioned_det = 1e-6 * mean_square_stretch * std::sqrt(mean_square_stretch);
+  if (f.determinant() > well_conditioned_det) return rotation_by_newton(f);
+  return rotation_by_svd(f);
+}
+
+// x_b − x_0 of tet `tet` for a node-major displacement vector on top of rest positions.
+Eigen::Matrix3d deformed_edges(const geometry::Tet& tet, const std::vector<Eigen::Vector3d>& rest,
+                               const Eigen::VectorXd& u) {
+  const auto x = [&](int a) -> Eigen::Vector3d { return rest[tet[a]] + u.segment<3>(3 * tet[a]); };
+  return edge_matrix(x(0), x(1), x(2), x(3));
+}
+
+// Isotropic linear elastic stress of a small strain (kPa) times the tet's volume (mm³): applied
+// to a shape-function gradient (1/mm) it gives a nodal force in mN.
+Eigen::Matrix3d volume_stress(const Eigen::Matrix3d& strain, const Eigen::Vector2d& lame_volume) {
+  return lame_volume[0] * strain.trace() * Eigen::Matrix3d::Identity() +
+         2.0 * lame_volume[1] * strain;
+}
+
+// Node block K_ab of a linear tet's stiffness from its shape-function gradients: for isotropic
+// linear elasticity K_ab = V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I). With the rotated
+// gradients R g it is the warped block R K_ab Rᵀ directly: ~20 flops instead of two 3×3 products.
+inline Eigen::Matrix3d stiffness_block(const Eigen::Vector3d& ga, const Eigen::Vector3d& gb,
+                                       const Eigen::Vector2d& lame_volume) {
+  const Eigen::Vector3d lambda_ga = lame_volume[0] * ga, mu_gb = lame_volume[1] * gb;
+  Eigen::Matrix3d k;
+  for (int j = 0; j < 3; ++j) {
+    for (int i = 0; i < 3; ++i) k(i, j) = lambda_ga[i] * gb[j] + mu_gb[i] * ga[j];
+  }
+  k.diagonal().array() += mu_gb.dot(ga);
+  return k;
+}
+
+}  // namespace
+
+CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
+                                 std::span<const Material> tet_materials,
+                                 std::span<const std::uint8_t> fixed_nodes,
+                                 const CorotationalSettings& settings, hal::JobSystem* jobs)
+    : settings_(settings),
+      jobs_(jobs),
+      rest_(mesh.rest_positions_mm),
+      tets_(mesh.tets),
+      fixed_(fixed_nodes.begin(), fixed_nodes.end()) {
+  const int n = mesh.node_count();
+  if (tet_materials.size() != mesh.tets.size()) {
+    throw std::invalid_argument("CorotationalFem: need one material per tet");
+  }
+  if (fixed_.size() != static_cast<std::size_t>(n)) {
+    throw std::invalid_argument("CorotationalFem: need one fixed flag per node");
+  }
+  for (auto f : fixed_) fixed_count_ += f ? 1 : 0;
+  if (fixed_count_ == 0) {
+    throw std::invalid_argument(
+        "no fixed nodes: the stiffness matrix is singular (the tissue could float away); fix a "
+        "face or a label in the case's [mesh] table");
+  }
+  if (settings.pcg_iterations_per_frame < 1) {
+    throw std::invalid_argument("pcg_iterations_per_frame must be >= 1");
+  }
+  if (!(settings.relative_tolerance >= 0.0) || !std::isfinite(settings.relative_tolerance)) {
+    throw std::invalid_argument("relative_tolerance must be finite and >= 0");
+  }
+  validate_and_precompute_tets(mesh, tet_materials);
+  build_pattern_and_scatter_map();
+
+  const int dofs = 3 * n;
+  u_ = rhs_ = inverse_diagonal_ = load_mn_ = Eigen::VectorXd::Zero(dofs);
+  r_ = z_ = p_ = q_ = u_before_step_ = Eigen::VectorXd::Zero(dofs);
+  held_.assign(n, 0);
+  contact_push_mn_.assign(n, 0.0);
+  contacts_.reserve(n);  // every node at most once: step() never grows it
+  prescribed_.assign(n, 0);
+  prescribed_u_.assign(n, Eigen::Vector3d::Zero());
+  deformed_ = rest_;
+  chunk_sums_.assign(std::max(tet_chunks(), node_chunks()), Eigen::Vector4d::Zero());
+
+  // At rest every rotation is the identity: K_R is LinearFem's stiffness and the rhs is zero.
+  rotation_.assign(tets_.size(), Eigen::Matrix3d::Identity());
+  rotated_gradients_ = shape_gradients_;
+  element_rhs_.assign(tets_.size(), Eigen::Matrix<double, 3, 4>::Zero());
+  assemble_warped_system();
+}
+
+void CorotationalFem::validate_and_precompute_tets(const geometry::TetMesh& mesh,
+                                                   std::span<const Material> tet_materials) {
+  const int n = mesh.node_count();
+  shape_gradients_.resize(tets_.size());
+  lame_volume_.resize(tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const auto& tet = tets_[t];
+    for (int a = 0; a < 4; ++a) {
+      if (tet[a] < 0 || tet[a] >= n) {
+        throw std::invalid_argument("tet " + std::to_string(t) + " references node " +
+                                    std::to_string(tet[a]) + ", outside the mesh");
+      }
+    }
+    const Material& m = tet_materials[t];
+    check_material(m);
+    const auto& p = rest_;
+    const Eigen::Matrix3d edges = edge_matrix(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]);
+    const double volume = edges.determinant() / 6.0;
+    if (!(volume > 0)) {
+      throw std::invalid_argument("tet " + std::to_string(t) + " has no positive volume");
+    }
+    // Rows of edges⁻¹ are the gradients of the shape functions of nodes 1..3.
+    const Eigen::Matrix3d grads = edges.inverse();
+    auto& g = shape_gradients_[t];
+    g.rightCols<3>() = grads.transpose();
+    g.col(0) = -(g.col(1) + g.col(2) + g.col(3));
+    const double e = m.youngs_modulus_kpa, nu = m.poisson_ratio;
+    lame_volume_[t] =
+        volume * Eigen::Vector2d(e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu)));
+    check_against_linear_fem(t, m);
+  }
+}
+
+void CorotationalFem::check_against_linear_fem(int t, const Material& m) const {
+  // LinearFem's element stiffness is the model; the gradient form above only evaluates it faster.
+  // Compare them once per tet so the two engines cannot drift apart.
+  const auto& tet = tets_[t];
+  const auto& p = rest_;
+  const Eigen::Matrix<double, 12, 12> ke = tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
+                                                         m.youngs_modulus_kpa, m.poisson_ratio);
+  double mismatch = 0.0;
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) {
+      const Eigen::Matrix3d k =
+          stiffness_block(shape_gradients_[t].col(a), shape_gradients_[t].col(b), lame_volume_[t]);
+      mismatch = std::max(mismatch, (k - ke.block<3, 3>(3 * a, 3 * b)).cwiseAbs().maxCoeff());
+    }
+  }
+  if (!(mismatch <= 1e-9 * ke.cwiseAbs().maxCoeff())) {
+    throw std::logic_error("CorotationalFem: element stiffness of tet " + std::to_string(t) +
+                           " differs from tet_stiffness(); the two material models drifted apart");
+  }
+}
+
+void CorotationalFem::build_pattern_and_scatter_map() {
+  const int n = node_count();
+  // Node adjacency (nodes sharing a tet, and each node itself): the block pattern of K_R.
+  std::vector<std::vector<int>> neighbours(n);
+  for (const auto& tet : tets_) {
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b) neighbours[tet[a]].push_back(tet[b]);
+    }
+  }
+  block_row_start_.assign(n + 1, 0);
+  block_col_.clear();
+  diagonal_block_.assign(n, -1);
+  for (int node = 0; node < n; ++node) {
+    auto& cols = neighbours[node];
+    cols.push_back(node);  // a node in no tet still gets a diagonal block
+    std::sort(cols.begin(), cols.end());
+    cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
+    for (int c : cols) {
+      if (c == node) diagonal_block_[node] = static_cast<int>(block_col_.size());
+      block_col_.push_back(c);
+    }
+    block_row_start_[node + 1] = static_cast<int>(block_col_.size());
+  }
+  block_value_.assign(block_col_.size(), Eigen::Matrix3d::Zero());
+
+  const auto block_index = [&](int row, int col) {
+    const auto first = block_col_.begin() + block_row_start_[row];
+    const auto last = block_col_.begin() + block_row_start_[row + 1];
+    return static_cast<int>(std::lower_bound(first, last, col) - block_col_.begin());
+  };
+  // K_R is symmetric: only blocks on or above the diagonal are summed from the tets, each block
+  // below it is the transpose of its mirror.
+  mirror_block_.assign(block_col_.size(), -1);
+  for (int node = 0; node < n; ++node) {
+    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+      if (block_col_[k] < node) mirror_block_[k] = block_index(block_col_[k], node);
+    }
+  }
+  // Counting sort of the element blocks by the global block they add to, in tet order, so each
+  // global block sums its contributions in a fixed order.
+  std::vector<int> target(tets_.size() * 16, -1);
+  contribution_start_.assign(block_col_.size() + 1, 0);
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b) {
+        if (tets_[t][a] > tets_[t][b]) continue;  // below the diagonal: mirrored
+        const int k = block_index(tets_[t][a], tets_[t][b]);
+        target[16 * t + 4 * a + b] = k;
+        ++contribution_start_[k + 1];
+      }
+    }
+  }
+  for (std::size_t k = 0; k < block_col_.size(); ++k) {
+    contribution_start_[k + 1] += contribution_start_[k];
+  }
+  std::vector<int> next(contribution_start_.begin(), contribution_start_.end() - 1);
+  contribution_.resize(contribution_start_.back());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    for (int ab = 0; ab < 16; ++ab) {
+      const int k = target[16 * t + ab];
+      if (k >= 0)
+        contribution_[next[k]++] = encode_contribution(static_cast<int>(t), ab / 4, ab % 4);
+    }
+  }
+}
+
+int CorotationalFem::tet_chunks() const {
+  return (tet_count() + kTetsPerChunk - 1) / kTetsPerChunk;
+}
+
+int CorotationalFem::node_chunks() const {
+  return (node_count() + kNodesPerChunk - 1) / kNodesPerChunk;
+}
+
+template <typename Body>
+void CorotationalFem::for_each_chunk(int chunks, Body&& body) const {
+  if (jobs_ != nullptr && jobs_->thread_count() > 1 && chunks > 1) {
+    hal::parallel_for(*jobs_, chunks, [&body](int chunk) { body(chunk); });
+  } else {
+    for (int chunk = 0; chunk < chunks; ++chunk) body(chunk);
+  }
+}
+
+Eigen::Vector4d CorotationalFem::sum_chunks(int chunks) const {
+  Eigen::Vector4d total = Eigen::Vector4d::Zero();
+  for (int c = 0; c < chunks; ++c) total += chunk_sums_[c];
+  return total;
+}
+
+void CorotationalFem::prescribe_displacement(int node, const Eigen::Vector3d& displacement_mm) {
+  if (node < 0 || node >= node_count()) {
+    throw std::out_of_range("CorotationalFem: node " + std::to_string(node) + " out of range");
+  }
+  if (!displacement_mm.allFinite()) {
+    throw std::invalid_argument("CorotationalFem: prescribed displacement must be finite");
+  }
+  if (fixed_[node]) return;
+  prescribed_[node] = 1;
+  prescribed_u_[node] = displacement_mm;
+}
+
+void CorotationalFem::release_displacement(int node) {
+  if (node < 0 || node >= node_count()) {
+    throw std::out_of_range("CorotationalFem: node " + std::to_string(node) + " out of range");
+  }
+  prescribed_[node] = 0;
+}
+
+void CorotationalFem::set_nodal_load(int node, const Eigen::Vector3d& force_mn) {
+  if (node < 0 || node >= node_count()) {
+    throw std::out_of_range("CorotationalFem: node " + std::to_string(node) + " out of range");
+  }
+  if (!force_mn.allFinite()) {
+    throw std::invalid_argument("CorotationalFem: nodal load must be finite");
+  }
+  if (fixed_[node]) return;
+  load_mn_.segment<3>(3 * node) = force_mn;
+}
+
+void CorotationalFem::clear_nodal_loads() {
+  load_mn_.setZero();
+}
+
+void CorotationalFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
+  if (u_mm.size() != 3 * static_cast<Eigen::Index>(node_count())) {
+    throw std::invalid_argument("CorotationalFem::set_displacements_mm: need 3 × " +
+                                std::to_string(node_count()) + " entries, got " +
+                                std::to_string(u_mm.size()));
+  }
+  if (!u_mm.allFinite()) {
+    throw std::invalid_argument("CorotationalFem::set_displacements_mm: non-finite displacement");
+  }
+  u_ = u_mm;
+  for (int node = 0; node < node_count(); ++node) {
+    if (fixed_[node]) u_.segment<3>(3 * node).setZero();
+  }
+  // The contacts belonged to the old shape; the next step finds them on this one.
+  contacts_.clear();
+  std::fill(contact_push_mn_.begin(), contact_push_mn_.end(), 0.0);
+  update_deformed();
+}
+
+void CorotationalFem::apply_constraints(const ProbeCollider* probe) {
+  if (probe == nullptr) {
+    contacts_.clear();
+    hold_constrained_nodes();
+    return;
+  }
+  find_contacts(*probe, deformed_, fixed_, kContactToleranceMm, contacts_);
+  // A prescribed node stays where the test put it. A node the probe had to pull last frame (the
+  // tissue was drawing it away from the probe) is let go where it is: the probe can only push.
+  // Without this a node once caught on the face stays stuck to it as the probe moves on, and the
+  // layers under the face are pulled flat against it.
+  std::erase_if(contacts_, [&](const NodeContact& c) {
+    return prescribed_[c.node] != 0 || contact_push_mn_[c.node] < 0.0;
+  });
+  const int first_follower = static_cast<int>(contacts_.size());
+  add_followers(*probe);
+  hold_constrained_nodes();
+  let_go_of_followers_that_would_pull(first_follower);
+}
+
+void CorotationalFem::add_followers(const ProbeCollider& probe) {
+  // A node the probe pushed on last frame and has now moved away from (the probe lifting) stays
+  // on its surface: compressed tissue follows a lifting probe. Dropping every such node as soon
+  // as the probe rises a micrometre would let the whole contact patch spring back into the
+  // probe on the next frame. held_ marks this frame's contacts here; hold_constrained_nodes()
+  // rebuilds it.
+  std::fill(held_.begin(), held_.end(), 0);
+  for (const auto& c : contacts_) held_[c.node] = 1;
+  for (int node = 0; node < node_count(); ++node) {
+    if (held_[node] || !(contact_push_mn_[node] > 0.0) || fixed_[node] || prescribed_[node]) {
+      continue;
+    }
+    const SurfacePoint s = probe.closest_surface_point(deformed_[node]);
+    contacts_.push_back({node, s.point_mm, s.normal, 0.0});  // capacity reserved: no allocation
+  }
+}
+
+void CorotationalFem::let_go_of_followers_that_would_pull(int first_follower) {
+  // Holding a follower on the moved surface may now take a pull (the tissue has relaxed below
+  // it). Judge with last frame's warped stiffness, the neighbours already moved: K_R u − b along
+  // the normal. Let go of those where it is not a push; they stay where they were.
+  int kept = first_follower;
+  for (int i = first_follower; i < static_cast<int>(contacts_.size()); ++i) {
+    const NodeContact& c = contacts_[i];
+    if (node_force_mn(c.node).dot(c.normal) > 0.0) {
+      contacts_[kept++] = c;
+      continue;
+    }
+    held_[c.node] = 0;
+    u_.segment<3>(3 * c.node) = u_before_step_.segment<3>(3 * c.node);
+  }
+  contacts_.resize(kept);  // shrinking: no allocation
+}
+
+Eigen::Vector3d CorotationalFem::node_force_mn(int node) const {
+  Eigen::Vector3d ku = Eigen::Vector3d::Zero();
+  for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+    ku.noalias() += block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+  }
+  return ku - rhs_.segment<3>(3 * node);
+}
+
+void CorotationalFem::hold_constrained_nodes() {
+  for (int node = 0; node < node_count(); ++node) {
+    held_[node] = fixed_[node] || prescribed_[node];
+    if (fixed_[node]) u_.segment<3>(3 * node).setZero();
+    if (prescribed_[node]) u_.segment<3>(3 * node) = prescribed_u_[node];
+  }
+  for (const auto& c : contacts_) {
+    held_[c.node] = 1;
+    u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
+  }
+}
+
+void CorotationalFem::update_rotations() {
+  for_each_chunk(tet_chunks(), [&](int chunk) {
+    const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);
+    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
+      const auto& g = shape_gradients_[t];
+      // F = Σ_b (x_b − x_0) g_bᵀ.
+      const Eigen::Matrix3d f =
+          deformed_edges(tets_[t], rest_, u_).lazyProduct(g.rightCols<3>().transpose());
+      const Eigen::Matrix3d r = polar_rotation(f);
+      rotation_[t] = r;
+      rotated_gradients_[t].noalias() = r.lazyProduct(g);
+      // Element rhs R K_e (x0 − Rᵀ x0): the displacement x0 − Rᵀ x0 has gradient I − Rᵀ, so the
+      // nodal forces are R σ(I − sym R) V g_a.
+      const Eigen::Matrix3d strain = Eigen::Matrix3d::Identity() - 0.5 * (r + r.transpose());
+      element_rhs_[t].noalias() = (r * volume_stress(strain, lame_volume_[t])).lazyProduct(g);
+    }
+  });
+}
+
+void CorotationalFem::assemble_warped_system() {
+  // A gather over global blocks, row bands in parallel: no two tasks write the same value.
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
+    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+        if (mirror_block_[k] >= 0) continue;  // below the diagonal: the second pass
+        Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+        for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
+          const int code = contribution_[c];
+          const int t = code >> 4, a = (code >> 2) & 3, b = code & 3;
+          const auto& h = rotated_gradients_[t];
+          sum += stiffness_block(h.col(a), h.col(b), lame_volume_[t]);  // = R K_ab Rᵀ
+        }
+        block_value_[k] = sum;
+      }
+      // rhs: the element rhs of every tet holding this node (the diagonal block's contributions
+      // are exactly those tets, one each) plus the external load.
+      const int diag = diagonal_block_[node];
+      Eigen::Vector3d rhs = load_mn_.segment<3>(3 * node);
+      for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
+        const int code = contribution_[c];
+        rhs += element_rhs_[code >> 4].col((code >> 2) & 3);
+      }
+      rhs_.segment<3>(3 * node) = rhs;
+      // Jacobi preconditioner; a node in no tet has a zero diagonal and is left alone.
+      const Eigen::Vector3d d = block_value_[diag].diagonal();
+      inverse_diagonal_.segment<3>(3 * node) =
+          (d.array() > 0.0).select(d.cwiseInverse(), Eigen::Vector3d::Zero());
+    }
+  });
+  // Blocks below the diagonal, from the finished blocks above it.
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
+    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+        if (mirror_block_[k] >= 0) block_value_[k] = block_value_[mirror_block_[k]].transpose();
+      }
+    }
+  });
+}
+
+CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double tolerance) {
+  const int chunks = node_chunks();
+  const auto node_range = [&](int chunk) {
+    return std::pair{chunk * kNodesPerChunk, std::min(node_count(), (chunk + 1) * kNodesPerChunk)};
+  };
+  // Start: r = b − K u on free rows. The free system is K_ff u_f = b_f − K_fh u_h; its rhs norm
+  // (the same product restricted to held columns) is the residual's yardstick, so a warm start
+  // that is already close does not make the tolerance stricter.
+  for_each_chunk(chunks, [&](int chunk) {
+    Eigen::Vector4d sums = Eigen::Vector4d::Zero();  // r·r, rhs·rhs, r·z
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
+      if (held_[node]) {
+        r_.segment<3>(3 * node).setZero();
+        z_.segment<3>(3 * node).setZero();
+        p_.segment<3>(3 * node).setZero();
+        continue;
+      }
+      Eigen::Vector3d ku = Eigen::Vector3d::Zero(), ku_held = Eigen::Vector3d::Zero();
+      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+        const Eigen::Vector3d term = block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+        ku += term;
+        if (held_[block_col_[k]]) ku_held += term;
+      }
+      const Eigen::Vector3d b = rhs_.segment<3>(3 * node);
+      const Eigen::Vector3d r = b - ku;
+      const Eigen::Vector3d free_rhs = b - ku_held;
+      const Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+      r_.segment<3>(3 * node) = r;
+      z_.segment<3>(3 * node) = z;
+      p_.segment<3>(3 * node) = z;
+      sums += Eigen::Vector4d(r.squaredNorm(), free_rhs.squaredNorm(), r.dot(z), 0.0);
+    }
+    chunk_sums_[chunk] = sums;
+  });
+  const Eigen::Vector4d start = sum_chunks(chunks);
+  // With nothing pushing (probe lifted, no loads) the answer is rest and the rhs is 0: measure
+  // progress against where this frame started instead.
+  const double reference = std::max({std::sqrt(start[0]), std::sqrt(start[1]), 1e-30});
+  double rz = start[2];
+  double residual = std::sqrt(start[0]);
+  int it = 0;
+  while (it < max_iterations && residual > tolerance * reference) {
+    // q = K p on free rows; p·q.
+    for_each_chunk(chunks, [&](int chunk) {
+      double pq = 0.0;
+      const auto [begin, end] = node_range(chunk);
+      for (int node = begin; node < end; ++node) {
+        if (held_[node]) {
+          q_.segment<3>(3 * node).setZero();
+          continue;
+        }
+        Eigen::Vector3d kp = Eigen::Vector3d::Zero();
+        for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+          kp.noalias() += block_value_[k].lazyProduct(p_.segment<3>(3 * block_col_[k]));
+        }
+        q_.segment<3>(3 * node) = kp;
+        pq += p_.segment<3>(3 * node).dot(kp);
+      }
+      chunk_sums_[chunk] = Eigen::Vector4d(pq, 0.0, 0.0, 0.0);
+    });
+    const double pq = sum_chunks(chunks)[0];
+    if (!(pq > 0)) break;  // converged to rounding (or non-finite: caught by the caller)
+    const double alpha = rz / pq;
+    // u += αp, r −= αq, z = M⁻¹ r; r·z, r·r. Held rows have p = q = r = 0 and stay put.
+    for_each_chunk(chunks, [&](int chunk) {
+      const auto [begin, end] = node_range(chunk);
+      const int lo = 3 * begin, len = 3 * (end - begin);
+      u_.segment(lo, len) += alpha * p_.segment(lo, len);
+      r_.segment(lo, len) -= alpha * q_.segment(lo, len);
+      z_.segment(lo, len) = inverse_diagonal_.segment(lo, len).cwiseProduct(r_.segment(lo, len));
+      chunk_sums_[chunk] = Eigen::Vector4d(r_.segment(lo, len).dot(z_.segment(lo, len)),
+                                           r_.segment(lo, len).squaredNorm(), 0.0, 0.0);
+    });
+    const Eigen::Vector4d sums = sum_chunks(chunks);
+    const double beta = sums[0] / rz;
+    rz = sums[0];
+    residual = std::sqrt(sums[1]);
+    for_each_chunk(chunks, [&](int chunk) {
+      const auto [begin, end] = node_range(chunk);
+      const int lo = 3 * begin, len = 3 * (end - begin);
+      p_.segment(lo, len) = z_.segment(lo, len) + beta * p_.segment(lo, len);
+    });
+    ++it;
+  }
+  return {it, residual / reference};
+}
+
+CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::VectorXd& u) const {
+  const int chunks = tet_chunks();
+  for_each_chunk(chunks, [&](int chunk) {
+    int inverted = 0, with_free_node = 0;
+    const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);
+    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
+      const auto& tet = tets_[t];
+      // Not `<= 0`: a NaN volume counts as inverted too.
+      if (deformed_edges(tet, rest_, u).determinant() > 0.0) continue;
+      ++inverted;
+      with_free_node += !(held_[tet[0]] && held_[tet[1]] && held_[tet[2]] && held_[tet[3]]);
+    }
+    chunk_sums_[chunk] = Eigen::Vector4d(inverted, with_free_node, 0.0, 0.0);
+  });
+  const Eigen::Vector4d sums = sum_chunks(chunks);
+  return {static_cast<int>(sums[0]), static_cast<int>(sums[1])};
+}
+
+int CorotationalFem::inverted_tet_count() const {
+  return count_inverted(u_).total;
+}
+
+double CorotationalFem::measure_contact_forces() {
+  // The force the probe exerts on a held node is what its elasticity and load leave unbalanced:
+  // K_R u − b (b includes the loads), in mN. Its part along the probe's outward normal is the
+  // push the next frame's release test reads.
+  std::fill(contact_push_mn_.begin(), contact_push_mn_.end(), 0.0);
+  Eigen::Vector3d total_mn = Eigen::Vector3d::Zero();
+  for (const auto& c : contacts_) {
+    const Eigen::Vector3d force_mn = node_force_mn(c.node);
+    contact_push_mn_[c.node] = force_mn.dot(c.normal);
+    total_mn += force_mn;
+  }
+  return total_mn.norm() / 1000.0;
+}
+
+void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
+  const bool finite = u_.allFinite();
+  const InversionCount inverted = finite ? count_inverted(u_) : InversionCount{};
+  stats.inverted_tets = inverted.total;
+  // Tets whose four nodes are all held (pressed flat between probe contacts) are the
+  // constraints' doing, which no solve or retry changes: only the others count against a frame.
+  if (finite && inverted.with_free_node == 0) return;
+  // A frame may not fold more tets than the shape it started from had (a shape handed over by
+  // another engine may come folded; the solve then unfolds it over the next frames).
+  const int allowed = count_inverted(u_before_step_).with_free_node;
+  if (finite && inverted.with_free_node <= allowed) return;
+  stats.diverged = true;
+  stats.recovery = Recovery::kSubstepped;
+  if (finite) {
+    // Cut the frame's update short: the tissue lags the probe for a frame instead of folding.
+    q_ = u_ - u_before_step_;
+    double fraction = 1.0;
+    for (int i = 0; i < kMaxBacktracks; ++i) {
+      fraction *= 0.5;
+      u_ = u_before_step_ + fraction * q_;
+      if (count_inverted(u_).with_free_node <= allowed) return;
+    }
+  }
+  // All the way back: the previous frame's shape. Not rest, which with the probe still deep in
+  // the tissue would put nodes far inside it and start from a worse shape than this.
+  u_ = u_before_step_;
+}
+
+void CorotationalFem::update_deformed() {
+  for (int node = 0; node < node_count(); ++node) {
+    deformed_[node] = rest_[node] + u_.segment<3>(3 * node);
+  }
+}
+
+EngineStepStats CorotationalFem::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+  u_before_step_ = u_;
+  apply_constraints(probe);
+  update_rotations();
+  assemble_warped_system();
+  const PcgResult pcg = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
+  EngineStepStats stats;
+  stats.iterations = pcg.iterations;
+  stats.relative_residual = pcg.relative_residual;
+  stats.contact_nodes = static_cast<int>(contacts_.size());
+  accept_or_recover(stats);
+  stats.contact_force_n = measure_contact_forces();
+  update_deformed();
+  return stats;
+}
+
+CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_mm, int max_outer) {
+  CorotationalConvergence result;
+  // The last step's contacts stay held at their targets: re-apply them, since a cut-short
+  // frame may have left them short.
+  hold_constrained_nodes();
+  const Eigen::VectorXd::Index dofs = u_.size();
+  const int max_pcg =
+      static_cast<int>(2 * dofs + 100);  // CG needs ≤ dofs steps, in exact arithmetic
+  PcgResult pcg;
+  while (result.outer_iterations < max_outer) {
+    u_before_step_ = u_;  // the shape this outer iteration starts from
+    update_rotations();
+    assemble_warped_system();
+    pcg = run_pcg(max_pcg, kConvergedRelativeResidual);
+    result.pcg_iterations += pcg.iterations;
+    ++result.outer_iterations;
+    if (!u_.allFinite()) break;
+    double change = 0.0;
+    for (int node = 0; node < node_count(); ++node) {
+      change =
+          std::max(change, (u_.segment<3>(3 * node) - u_before_step_.segment<3>(3 * node)).norm());
+    }
+    result.last_change_mm = change;
+    if (change < tolerance_mm) {
+      result.converged = true;
+      break;
+    }
+  }
+  // The reference keeps its converged shape, inverted tets and all (they are reported: a
+  // backtracked answer would not be the converged one); only a non-finite one is thrown away.
+  EngineStepStats& stats = result.stats;
+  stats.iterations = result.pcg_iterations;
+  stats.relative_residual = pcg.relative_residual;
+  stats.contact_nodes = static_cast<int>(contacts_.size());
+  if (!u_.allFinite()) {
+    u_ = u_before_step_;  // the last finite iterate
+    stats.diverged = true;
+    stats.recovery = Recovery::kSubstepped;
+    result.converged = false;
+  } else {
+    const InversionCount inverted = count_inverted(u_);
+    stats.inverted_tets = inverted.total;
+    stats.diverged = inverted.with_free_node > 0;
+    stats.contact_force_n = measure_contact_forces();
+  }
+  update_deformed();
+  return result;
+}
+
+void CorotationalFem::elastic_forces_mn(std::span<const Eigen::Vector3d> positions_mm,
+                                        Eigen::VectorXd& forces_mn) const {
+  if (positions_mm.size() != rest_.size()) {
+    throw std::invalid_argument("CorotationalFem::elastic_forces_mn: need one position per node");
+  }
+  forces_mn.setZero(3 * node_count());
+  for (int t = 0; t < tet_count(); ++t) {
+    const auto& tet = tets_[t];
+    const auto& x = positions_mm;
+    const auto& g = shape_gradients_[t];
+    const Eigen::Matrix3d f =
+        edge_matrix(x[tet[0]], x[tet[1]], x[tet[2]], x[tet[3]]) * g.rightCols<3>().transpose();
+    const Eigen::Matrix3d r = polar_rotation(f);
+    // R K_e (Rᵀ x − x0): the field Rᵀ x − x0 has gradient Rᵀ F − I (symmetric for the polar R).
+    const Eigen::Matrix3d rtf = r.transpose() * f;
+    const Eigen::Matrix3d strain = 0.5 * (rtf + rtf.transpose()) - Eigen::Matrix3d::Identity();
+    const Eigen::Matrix<double, 3, 4> nodal = r * volume_stress(strain, lame_volume_[t]) * g;
+    for (int a = 0; a < 4; ++a) forces_mn.segment<3>(3 * tet[a]) += nodal.col(a);
+  }
+}
+
+Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::warped_stiffness() const {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(block_value_.size() * 9);
+  for (int node = 0; node < node_count(); ++node) {
+    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          triplets.emplace_back(3 * node + i, 3 * block_col_[k] + j, block_value_[k](i, j));
+        }
+      }
+    }
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> k(3 * node_count(), 3 * node_count());
+  k.setFromTriplets(triplets.begin(), triplets.end());
+  return k;
+}
+
+}  // namespace ultrasim::sim

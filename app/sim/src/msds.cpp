@@ -1,0 +1,800 @@
+#include "ultrasim/sim/msds.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+namespace ultrasim::sim {
+
+// Stability of the explicit step (forward_euler_stable_time_step_s, msds_max_omega_squared_bound).
+//
+// Linearised about rest, the MSDS is M ẍ + C ẋ + K x = 0: M the lumped masses, K the springs
+// (k n nᵀ between each spring's nodes) and, since every spring has c = β k along the same
+// direction n, C = β K exactly (β = damping_per_stiffness_s). M⁻¹K has real eigenvalues ω² ≥ 0
+// (it is similar to M^-½ K M^-½) and M⁻¹C shares its eigenvectors, so the system splits into
+// modes q̈ + β ω² q̇ + ω² q = 0 with characteristic roots
+//   s = (−β ω² ± √(β² ω⁴ − 4 ω²)) / 2.
+// Forward Euler on the first-order form (x, v) multiplies each root's component by 1 + dt·s per
+// step, so it is stable iff |1 + dt·s| ≤ 1 for every root:
+//   β ω ≤ 2 (a complex pair): |1 + dt s|² = 1 − dt β ω² + dt² ω² ≤ 1  ⇔  dt ≤ β;
+//   β ω > 2 (two negative reals): the faster root binds, |s| = (β ω² + ω √(β² ω² − 4)) / 2, and
+//     1 + dt s ≥ −1  ⇔  dt ≤ 2 / |s| = 4 / (β ω² + ω √(β² ω² − 4))  (≈ 2 / (β ω²) for β ω ≫ 2).
+// The branches meet at β ω = 2 (dt = β) and the bound falls as ω grows: the stiffest mode decides.
+// Its ω² is bounded by Gershgorin's theorem on the rows of M⁻¹K restricted to the free DOFs:
+// every eigenvalue lies in a disc about a diagonal entry whose radius is the rest of the row's
+// absolute sum, and the eigenvalues are real and ≥ 0, so ω²_max ≤ the largest absolute row sum.
+// For row x of free node i, with n the unit direction of spring s (at rest) and D_i = Σ_s k_s n nᵀ
+// its diagonal block:
+//   (1/m_i) [ Σ_y |(D_i)_xy| + Σ_{springs s from i to a free node} k_s |n_x| (|n_x|+|n_y|+|n_z|) ].
+// (A spring to a pinned node has no off-diagonal block.) Entry-wise rows beat 3×3 blocks here: a
+// spring across x adds nothing to row x. The bound is safe (dt_bound ≤ the true limit); on the
+// tests' grid meshes it is 1.3–1.4× the true ω²_max, so dt_bound ≈ 0.7× the true limit (the tests
+// measure it by bisection).
+
+namespace {
+
+constexpr int kNodesPerChunk = 256;
+constexpr int kSpringsPerChunk = 1024;
+constexpr int kTetsPerChunk = 1024;
+constexpr int kMaxStepsPerFrame = 100000;  // steps << kMaxHalvings must fit an int
+// A node this close to the probe's surface (or inside it) is a contact: a node held on the surface
+// last step stays in contact while the probe stays.
+constexpr double kTouchToleranceMm = 1e-6;
+// A spring shorter than this fraction of its rest length has no reliable direction of its own.
+constexpr double kCollapsedFraction = 1e-9;
+constexpr double kKgPerMm3PerKgPerM3 = 1e-9;
+
+int chunk_count(int items, int per_chunk) {
+  return (items + per_chunk - 1) / per_chunk;
+}
+
+void require(bool ok, const std::string& message) {
+  if (!ok) throw std::invalid_argument("MSDS: " + message);
+}
+
+bool positive_finite(double value) {
+  return value > 0.0 && std::isfinite(value);
+}
+
+void check_material(const Material& m) {
+  require(positive_finite(m.youngs_modulus_kpa),
+          "material '" + m.name + "': youngs_modulus_kpa must be > 0");
+  require(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5,
+          "material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
+}
+
+void check_settings(const MsdsSettings& s) {
+  require(positive_finite(s.stiffness_per_modulus_mm), "stiffness_per_modulus_mm must be > 0");
+  require(s.damping_per_stiffness_s >= 0.0 && std::isfinite(s.damping_per_stiffness_s),
+          "damping_per_stiffness_s must be >= 0");
+  require(positive_finite(s.density_kg_per_m3), "density_kg_per_m3 must be > 0");
+  require(positive_finite(s.time_step_s), "time_step_s must be > 0");
+  require(s.steps_per_frame >= 1 && s.steps_per_frame <= kMaxStepsPerFrame,
+          "steps_per_frame must be in [1, " + std::to_string(kMaxStepsPerFrame) + "]");
+  require(s.implicit_steps_per_frame >= 1 && s.implicit_steps_per_frame <= kMaxStepsPerFrame,
+          "implicit_steps_per_frame must be in [1, " + std::to_string(kMaxStepsPerFrame) + "]");
+}
+
+void check_mesh(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
+                std::span<const std::uint8_t> fixed_nodes) {
+  const int n = mesh.node_count();
+  require(tet_materials.size() == mesh.tets.size(),
+          "need one material per tet (" + std::to_string(tet_materials.size()) + " for " +
+              std::to_string(mesh.tets.size()) + " tets)");
+  require(fixed_nodes.size() == static_cast<std::size_t>(n),
+          "need one fixed flag per node (" + std::to_string(fixed_nodes.size()) + " for " +
+              std::to_string(n) + " nodes)");
+  require(std::any_of(fixed_nodes.begin(), fixed_nodes.end(), [](auto f) { return f != 0; }),
+          "no node is fixed: the springs' stiffness is singular (the tissue could float away); "
+          "fix a face or a label in the case's [mesh] table");
+  const auto& p = mesh.rest_positions_mm;
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
+    const auto& tet = mesh.tets[t];
+    for (auto node : tet) {
+      require(node >= 0 && node < n, "tet " + std::to_string(t) + " references node " +
+                                         std::to_string(node) + " outside the mesh");
+    }
+    require(geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]) > 0.0,
+            "tet " + std::to_string(t) + " has no positive volume");
+    check_material(tet_materials[t]);
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// Per node, the largest absolute row sum of K over its three rows (mN/mm): Gershgorin's radius
+// about zero for the node's rows of K, so ω² ≤ rows / mass. Pinned nodes' rows and columns drop
+// out (their entries are 0).
+std::vector<double> gershgorin_row_sums(std::span<const Eigen::Vector3d> rest_positions_mm,
+                                        std::span<const MsdsSpring> springs,
+                                        std::span<const std::uint8_t> pinned) {
+  const std::size_t n = pinned.size();
+  std::vector<Eigen::Matrix3d> diagonal_block(n, Eigen::Matrix3d::Zero());
+  std::vector<Eigen::Vector3d> off_block_row_sum(n, Eigen::Vector3d::Zero());
+  for (const auto& s : springs) {
+    const Eigen::Vector3d dir = (rest_positions_mm[s.b] - rest_positions_mm[s.a]).normalized();
+    const Eigen::Matrix3d block = s.stiffness_mn_per_mm * dir * dir.transpose();
+    diagonal_block[s.a] += block;
+    diagonal_block[s.b] += block;
+    if (pinned[s.a] || pinned[s.b]) continue;
+    const Eigen::Vector3d row_sums = block.cwiseAbs().rowwise().sum();
+    off_block_row_sum[s.a] += row_sums;
+    off_block_row_sum[s.b] += row_sums;
+  }
+  std::vector<double> rows(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (pinned[i]) continue;
+    rows[i] = (diagonal_block[i].cwiseAbs().rowwise().sum() + off_block_row_sum[i]).maxCoeff();
+  }
+  return rows;
+}
+
+}  // namespace
+
+double msds_max_omega_squared_bound(std::span<const Eigen::Vector3d> rest_positions_mm,
+                                    std::span<const MsdsSpring> springs,
+                                    std::span<const double> node_masses_kg,
+                                    std::span<const std::uint8_t> pinned) {
+  const std::vector<double> rows = gershgorin_row_sums(rest_positions_mm, springs, pinned);
+  // mN/mm / kg = (kg·mm/s²)/mm / kg = 1/s².
+  double bound = 0.0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (pinned[i] || !(node_masses_kg[i] > 0.0)) continue;
+    bound = std::max(bound, rows[i] / node_masses_kg[i]);
+  }
+  return bound;
+}
+
+double msds_max_stable_omega_squared(double time_step_s, double damping_per_stiffness_s) {
+  // forward_euler_stable_time_step_s is non-increasing in ω²: bisect on a log scale.
+  if (!(forward_euler_stable_time_step_s(1e-12, damping_per_stiffness_s) >= time_step_s)) {
+    return 0.0;  // no mass makes it stable (dt above β, or no damping)
+  }
+  double lo = 1e-12, hi = 1e30;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    if (forward_euler_stable_time_step_s(mid, damping_per_stiffness_s) >= time_step_s) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo;
+}
+
+double forward_euler_stable_time_step_s(double omega_squared, double damping_per_stiffness_s) {
+  const double beta = damping_per_stiffness_s;
+  const double omega = std::sqrt(omega_squared);
+  if (beta * omega <= 2.0) return beta;
+  return 4.0 / (beta * omega_squared + omega * std::sqrt(beta * beta * omega_squared - 4.0));
+}
+
+MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
+                       std::span<const Material> tet_materials,
+                       std::span<const std::uint8_t> fixed_nodes, const MsdsSettings& settings,
+                       hal::JobSystem* jobs)
+    : integrator_(integrator), settings_(settings), jobs_(jobs) {
+  check_settings(settings);
+  check_mesh(mesh, tet_materials, fixed_nodes);
+  rest_ = mesh.rest_positions_mm;
+  tets_ = mesh.tets;
+  build_springs(mesh, tet_materials);
+  build_masses(mesh);
+  // A node in no tet has no mass and no spring: nothing could move it, so it never moves.
+  pinned_.resize(rest_.size());
+  for (std::size_t i = 0; i < rest_.size(); ++i) {
+    pinned_[i] = fixed_nodes[i] != 0 || !(mass_kg_[i] > 0.0);
+  }
+  if (integrator_ == MsdsIntegrator::kExplicitEuler && settings_.scale_mass_for_explicit_step) {
+    scale_masses_to_time_step();
+  }
+  build_adjacency();
+  size_buffers();
+}
+
+void MsdsEngine::build_springs(const geometry::TetMesh& mesh,
+                               std::span<const Material> tet_materials) {
+  // Every tet's six edges, sorted so that an edge's tets are adjacent (in tet order, which fixes
+  // the order the merged stiffness is summed in).
+  std::vector<std::tuple<std::int32_t, std::int32_t, int>> edges;
+  edges.reserve(mesh.tets.size() * 6);
+  for (int t = 0; t < mesh.tet_count(); ++t) {
+    const auto& tet = mesh.tets[t];
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i + 1; j < 4; ++j) {
+        edges.emplace_back(std::min(tet[i], tet[j]), std::max(tet[i], tet[j]), t);
+      }
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const auto [a, b, t] = edges[e];
+    const double k = tet_materials[t].youngs_modulus_kpa * settings_.stiffness_per_modulus_mm;
+    if (e > 0 && std::get<0>(edges[e - 1]) == a && std::get<1>(edges[e - 1]) == b) {
+      springs_.back().stiffness_mn_per_mm += k;
+      continue;
+    }
+    springs_.push_back({a, b, (rest_[b] - rest_[a]).norm(), k, 0.0});
+  }
+  // Damped springs only turn elastic energy into motion, and no sane press strains every spring by
+  // its own length: kinetic energy beyond that is an integrator blowing up.
+  kinetic_energy_ceiling_uj_ = 0.0;
+  for (auto& s : springs_) {
+    s.damping_mn_s_per_mm = s.stiffness_mn_per_mm * settings_.damping_per_stiffness_s;
+    kinetic_energy_ceiling_uj_ += 0.5 * s.stiffness_mn_per_mm * s.rest_length_mm * s.rest_length_mm;
+  }
+}
+
+void MsdsEngine::build_masses(const geometry::TetMesh& mesh) {
+  mass_kg_.assign(rest_.size(), 0.0);
+  const double kg_per_mm3 = settings_.density_kg_per_m3 * kKgPerMm3PerKgPerM3;
+  for (const auto& tet : mesh.tets) {
+    const double volume_mm3 =
+        geometry::signed_tet_volume(rest_[tet[0]], rest_[tet[1]], rest_[tet[2]], rest_[tet[3]]);
+    for (auto node : tet) mass_kg_[node] += 0.25 * volume_mm3 * kg_per_mm3;
+  }
+}
+
+void MsdsEngine::scale_masses_to_time_step() {
+  // 20 % margin below the limit: the Gershgorin bound is within ~1.5× of the true limit, and a
+  // compressed spring's transverse stiffness can add a little.
+  const double omega_squared_max =
+      msds_max_stable_omega_squared(1.2 * settings_.time_step_s, settings_.damping_per_stiffness_s);
+  if (!(omega_squared_max > 0.0)) {
+    throw std::invalid_argument(
+        "MsdsSettings: time_step_s must be below damping_per_stiffness_s for explicit Euler to be "
+        "stable at any mass");
+  }
+  const std::vector<double> rows = gershgorin_row_sums(rest_, springs_, pinned_);
+  double physical = 0.0, scaled = 0.0;
+  for (std::size_t i = 0; i < mass_kg_.size(); ++i) {
+    if (pinned_[i]) continue;
+    physical += mass_kg_[i];
+    mass_kg_[i] = std::max(mass_kg_[i], rows[i] / omega_squared_max);
+    scaled += mass_kg_[i];
+  }
+  mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+}
+
+void MsdsEngine::build_adjacency() {
+  const int n = node_count();
+  adjacency_begin_.assign(n + 1, 0);
+  for (const auto& s : springs_) {
+    ++adjacency_begin_[s.a + 1];
+    ++adjacency_begin_[s.b + 1];
+  }
+  for (int i = 0; i < n; ++i) adjacency_begin_[i + 1] += adjacency_begin_[i];
+  adjacency_spring_.resize(adjacency_begin_[n]);
+  adjacency_other_.resize(adjacency_begin_[n]);
+  adjacency_sign_.resize(adjacency_begin_[n]);
+  std::vector<int> fill(adjacency_begin_.begin(), adjacency_begin_.end() - 1);
+  for (int s = 0; s < static_cast<int>(springs_.size()); ++s) {
+    const auto& spring = springs_[s];
+    adjacency_spring_[fill[spring.a]] = s;
+    adjacency_sign_[fill[spring.a]] = 1.0;  // the spring's force is stored as the one on a
+    adjacency_other_[fill[spring.a]++] = spring.b;
+    adjacency_spring_[fill[spring.b]] = s;
+    adjacency_sign_[fill[spring.b]] = -1.0;
+    adjacency_other_[fill[spring.b]++] = spring.a;
+  }
+}
+
+void MsdsEngine::size_buffers() {
+  const std::size_t n = rest_.size();
+  x_ = rest_;
+  v_.assign(n, Eigen::Vector3d::Zero());
+  u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(n));
+  x_frame_start_ = x_;
+  v_frame_start_ = v_;
+  spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
+  spring_damping_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
+  contacts_.reserve(n);  // find_contacts never needs more: step() does not allocate
+  held_.assign(n, 0);
+  touching_only_.assign(n, 0);
+  contact_normal_.assign(n, Eigen::Vector3d::UnitZ());
+  if (integrator_ == MsdsIntegrator::kImplicitEuler) {
+    spring_block_.assign(springs_.size(), Eigen::Matrix3d::Zero());
+    for (auto* buffer : {&inverse_diagonal_, &rhs_, &r_, &z_, &p_, &q_}) {
+      buffer->assign(n, Eigen::Vector3d::Zero());
+    }
+  }
+  const int chunks = std::max({node_chunk_count(),
+                               chunk_count(static_cast<int>(springs_.size()), kSpringsPerChunk),
+                               chunk_count(static_cast<int>(tets_.size()), kTetsPerChunk), 1});
+  partial_a_.assign(chunks, 0.0);
+  partial_b_.assign(chunks, 0.0);
+  partial_c_.assign(chunks, 0.0);
+  partial_finite_.assign(chunks, 1);
+}
+
+EngineKind MsdsEngine::kind() const {
+  return integrator_ == MsdsIntegrator::kExplicitEuler ? EngineKind::kMsdsExplicit
+                                                       : EngineKind::kMsdsImplicit;
+}
+
+std::string_view MsdsEngine::name() const {
+  return integrator_ == MsdsIntegrator::kExplicitEuler ? "MSDS explicit Euler"
+                                                       : "MSDS implicit Euler";
+}
+
+template <typename Body>
+void MsdsEngine::for_each_chunk(int count, Body&& body) {
+  if (jobs_ != nullptr && jobs_->thread_count() > 1 && count > 1) {
+    hal::parallel_for(*jobs_, count, [&body](int chunk) { body(chunk); });
+  } else {
+    for (int chunk = 0; chunk < count; ++chunk) body(chunk);
+  }
+}
+
+double MsdsEngine::sum_partials(const std::vector<double>& partials, int chunks) const {
+  double sum = 0.0;
+  for (int chunk = 0; chunk < chunks; ++chunk) sum += partials[chunk];
+  return sum;
+}
+
+MsdsEngine::StepResult MsdsEngine::gather_update_result() const {
+  StepResult result;
+  const int chunks = node_chunk_count();
+  result.kinetic_energy_uj = sum_partials(partial_a_, chunks);
+  for (int chunk = 0; chunk < chunks; ++chunk)
+    result.finite = result.finite && partial_finite_[chunk];
+  return result;
+}
+
+int MsdsEngine::node_chunk_count() const {
+  return chunk_count(node_count(), kNodesPerChunk);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Frame, recovery.
+
+EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+  std::copy(x_.begin(), x_.end(), x_frame_start_.begin());
+  std::copy(v_.begin(), v_.end(), v_frame_start_.begin());
+  // The frame's simulated time, steps × dt, in the explicit engine's steps or in fewer, larger
+  // implicit ones.
+  const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
+  const int steps = implicit ? settings_.implicit_steps_per_frame : settings_.steps_per_frame;
+  const double dt = settings_.time_step_s * settings_.steps_per_frame / steps;
+  EngineStepStats stats;
+  AttemptResult attempt = run_attempt(probe, dt, steps);
+  if (!attempt.accepted) {
+    stats.diverged = true;
+    stats.inverted_tets = attempt.inverted_tets;
+    for (int halvings = 1; halvings <= kMaxHalvings && !attempt.accepted; ++halvings) {
+      std::copy(x_frame_start_.begin(), x_frame_start_.end(), x_.begin());
+      std::copy(v_frame_start_.begin(), v_frame_start_.end(), v_.begin());
+      attempt = run_attempt(probe, dt / (1 << halvings), steps << halvings);
+    }
+    if (attempt.accepted) {
+      stats.recovery = Recovery::kSubstepped;
+    } else {
+      reset_to_rest();
+      stats.recovery = Recovery::kReset;
+    }
+  }
+  stats.iterations = attempt.iterations;
+  stats.relative_residual = attempt.relative_residual;
+  stats.contact_nodes = held_node_count();
+  stats.contact_force_n = contact_force_n();
+  update_displacements();
+  return stats;
+}
+
+MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, double dt_s,
+                                                  int steps) {
+  AttemptResult out;
+  // Counting inverted tets costs about a sixth of an explicit step and a few percent of an
+  // implicit one: every implicit step, every 4th explicit one (an explicit instability shows in
+  // the kinetic energy first), and always after the last, so a failing attempt stops early and a
+  // frame the probe inverts costs a few steps per try, not the whole frame. Not after the first
+  // step (unless it is the last): the probe's whole move since the last frame lands there at once
+  // and may fold the tets under it for that one step; the springs unfold them in the next.
+  const int check_every = integrator_ == MsdsIntegrator::kExplicitEuler ? 4 : 1;
+  for (int s = 0; s < steps; ++s) {
+    const StepResult r = advance(probe, dt_s);
+    out.iterations += integrator_ == MsdsIntegrator::kExplicitEuler ? 1 : r.cg_iterations;
+    out.relative_residual = std::max(out.relative_residual, r.cg_relative_residual);
+    // `!(a <= b)` also catches a NaN energy.
+    if (!r.finite || !(r.kinetic_energy_uj <= kinetic_energy_ceiling_uj_)) return out;
+    const bool last = s + 1 == steps;
+    if (!last && (s == 0 || (s + 1) % check_every != 0)) continue;
+    out.inverted_tets = count_inverted_tets();
+    if (out.inverted_tets > 0) return out;
+  }
+  out.accepted = true;
+  return out;
+}
+
+int MsdsEngine::count_inverted_tets() {
+  const int tet_count = static_cast<int>(tets_.size());
+  const int tet_chunks = chunk_count(tet_count, kTetsPerChunk);
+  for_each_chunk(tet_chunks, [&](int chunk) {
+    int inverted = 0;
+    const int end = std::min(tet_count, (chunk + 1) * kTetsPerChunk);
+    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
+      const auto& tet = tets_[t];
+      inverted +=
+          geometry::signed_tet_volume(x_[tet[0]], x_[tet[1]], x_[tet[2]], x_[tet[3]]) <= 0.0;
+    }
+    partial_a_[chunk] = inverted;
+  });
+  return static_cast<int>(sum_partials(partial_a_, tet_chunks));
+}
+
+void MsdsEngine::integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps) {
+  for (int s = 0; s < steps; ++s) advance(probe, dt_s);
+  update_displacements();
+}
+
+MsdsEngine::StepResult MsdsEngine::advance(const ProbeCollider* probe, double dt_s) {
+  apply_contacts(probe);
+  compute_spring_forces(dt_s);
+  return integrator_ == MsdsIntegrator::kExplicitEuler ? explicit_euler_update(dt_s)
+                                                       : implicit_euler_update(dt_s);
+}
+
+void MsdsEngine::reset_to_rest() {
+  std::copy(rest_.begin(), rest_.end(), x_.begin());
+  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+  clear_contacts();
+}
+
+void MsdsEngine::update_displacements() {
+  for (int i = 0; i < node_count(); ++i) u_.segment<3>(3 * i) = x_[i] - rest_[i];
+}
+
+void MsdsEngine::set_displacements_mm(const Eigen::VectorXd& u_mm) {
+  if (u_mm.size() != 3 * static_cast<Eigen::Index>(node_count())) {
+    throw std::invalid_argument(
+        "MSDS: set_displacements_mm needs 3 × node count = " + std::to_string(3 * node_count()) +
+        " entries, got " + std::to_string(u_mm.size()));
+  }
+  if (!u_mm.allFinite()) {
+    throw std::invalid_argument("MSDS: set_displacements_mm got a non-finite displacement");
+  }
+  // u_ keeps the given field exactly (not rest + u − rest), so switching back and forth between
+  // engines does not drift by rounding.
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i]) {
+      u_.segment<3>(3 * i).setZero();
+    } else {
+      u_.segment<3>(3 * i) = u_mm.segment<3>(3 * i);
+    }
+    x_[i] = rest_[i] + u_.segment<3>(3 * i);
+  }
+  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+  clear_contacts();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Contact and forces.
+
+void MsdsEngine::clear_contacts() {
+  for (const auto& c : contacts_) held_[c.node] = touching_only_[c.node] = 0;
+  contacts_.clear();
+}
+
+void MsdsEngine::apply_contacts(const ProbeCollider* probe) {
+  clear_contacts();
+  if (probe == nullptr) return;
+  find_contacts(*probe, x_, pinned_, kTouchToleranceMm, contacts_);
+  // As published: onto the probe's surface. The probe does not move within a frame, so a node
+  // held on it has zero velocity (zeroed, not just its normal part: the contact is sticky while
+  // held, as the published FEM's Dirichlet contact).
+  for (const auto& c : contacts_) {
+    x_[c.node] = c.target_mm;
+    v_[c.node].setZero();
+    held_[c.node] = 1;
+    touching_only_[c.node] = c.depth_mm <= kTouchToleranceMm;
+    contact_normal_[c.node] = c.normal;
+  }
+}
+
+void MsdsEngine::release_if_pulled_away(int node, const Eigen::Vector3d& force_mn) {
+  // Signorini: the probe pushes and never pulls. A node inside the probe must be held; one merely
+  // touching it whose springs pull it away from the probe (along the outward normal) is let go.
+  // Only the node's own flag changes: safe inside a node-parallel pass.
+  if (held_[node] && touching_only_[node] && force_mn.dot(contact_normal_[node]) > 0.0) {
+    held_[node] = 0;
+  }
+}
+
+Eigen::Vector3d MsdsEngine::spring_direction(int from, int to, double rest_length_mm,
+                                             double& length_mm) const {
+  const Eigen::Vector3d d = x_[to] - x_[from];
+  length_mm = d.norm();
+  if (length_mm > kCollapsedFraction * rest_length_mm) return d / length_mm;
+  // Collapsed (or not finite): push apart along the rest direction.
+  return (rest_[to] - rest_[from]) / rest_length_mm;
+}
+
+void MsdsEngine::gather_node_forces(int node, Eigen::Vector3d& elastic_mn,
+                                    Eigen::Vector3d& damping_mn) const {
+  elastic_mn.setZero();
+  damping_mn.setZero();
+  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    const MsdsSpring& s = springs_[adjacency_spring_[e]];
+    const int other = adjacency_other_[e];
+    double length = 0.0;
+    const Eigen::Vector3d dir = spring_direction(node, other, s.rest_length_mm, length);
+    elastic_mn += s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir;
+    damping_mn += s.damping_mn_s_per_mm * (v_[other] - v_[node]).dot(dir) * dir;
+  }
+}
+
+void MsdsEngine::compute_spring_forces(double dt_s) {
+  // Each spring once (its length and direction cost a square root and a division); the node
+  // passes then sum their springs' forces (sum_node_forces): no two tasks write the same place,
+  // and every node adds in the same order with or without jobs.
+  const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
+  const int spring_count = static_cast<int>(springs_.size());
+  for_each_chunk(chunk_count(spring_count, kSpringsPerChunk), [&](int chunk) {
+    const int end = std::min(spring_count, (chunk + 1) * kSpringsPerChunk);
+    for (int s = chunk * kSpringsPerChunk; s < end; ++s) {
+      const MsdsSpring& spring = springs_[s];
+      double length = 0.0;
+      const Eigen::Vector3d dir =
+          spring_direction(spring.a, spring.b, spring.rest_length_mm, length);
+      // Force on node a; node b gets the opposite. Damping along the spring only (the relative
+      // velocity projected on its direction): it resists stretching and compression but not a
+      // rigid rotation of the edge, as in the published MSDS.
+      spring_elastic_mn_[s] = spring.stiffness_mn_per_mm * (length - spring.rest_length_mm) * dir;
+      spring_damping_mn_[s] =
+          spring.damping_mn_s_per_mm * (v_[spring.b] - v_[spring.a]).dot(dir) * dir;
+      if (implicit) spring_block_[s] = implicit_spring_block(spring, dir, length, dt_s);
+    }
+  });
+}
+
+void MsdsEngine::sum_node_forces(int node, Eigen::Vector3d& elastic_mn,
+                                 Eigen::Vector3d& damping_mn) const {
+  elastic_mn.setZero();
+  damping_mn.setZero();
+  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    const double sign = adjacency_sign_[e];
+    elastic_mn += sign * spring_elastic_mn_[adjacency_spring_[e]];
+    damping_mn += sign * spring_damping_mn_[adjacency_spring_[e]];
+  }
+}
+
+double MsdsEngine::contact_force_n() const {
+  // A held node does not accelerate: the probe balances its spring and damping forces exactly.
+  Eigen::Vector3d total_mn = Eigen::Vector3d::Zero();
+  for (const auto& c : contacts_) {
+    if (!held_[c.node]) continue;
+    Eigen::Vector3d elastic, damping;
+    gather_node_forces(c.node, elastic, damping);
+    total_mn += elastic + damping;
+  }
+  return total_mn.norm() / 1000.0;
+}
+
+int MsdsEngine::held_node_count() const {
+  int held = 0;
+  for (const auto& c : contacts_) held += held_[c.node];
+  return held;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Explicit Euler (b).
+
+MsdsEngine::StepResult MsdsEngine::explicit_euler_update(double dt_s) {
+  // One pass per node: its force, the contact release, the update (it reads only its own node).
+  const int n = node_count();
+  const int chunks = node_chunk_count();
+  for_each_chunk(chunks, [&](int chunk) {
+    double kinetic = 0.0;
+    bool finite = true;
+    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      if (pinned_[i]) continue;
+      Eigen::Vector3d elastic, damping;
+      sum_node_forces(i, elastic, damping);
+      const Eigen::Vector3d force = elastic + damping;
+      release_if_pulled_away(i, force);
+      if (held_[i]) continue;
+      // Forward Euler, as published: both updates use the state at the start of the step; the
+      // position advances with the old velocity and the velocity with the old state's force
+      // (springs and damping at the old positions and velocities, compute_spring_forces()).
+      x_[i] += dt_s * v_[i];
+      v_[i] += (dt_s / mass_kg_[i]) * force;
+      kinetic += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
+      finite = finite && x_[i].allFinite() && v_[i].allFinite();
+    }
+    partial_a_[chunk] = kinetic;
+    partial_finite_[chunk] = finite;
+  });
+  return gather_update_result();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Implicit Euler (e).
+//
+// Backward Euler: v1 = v0 + h M⁻¹ f(x0 + h v1, v1). Linearising the spring forces about x0 (one
+// Newton step, Baraff & Witkin 1998), f(x0 + h v1, v1) ≈ f_e(x0) − K h v1 − C v1, where f_e is the
+// elastic force, K = −∂f_e/∂x and C = −∂f/∂v (damping is linear in v). Hence
+//   (M + h C + h² K) v1 = M v0 + h f_e(x0),   x1 = x0 + h v1.
+// Per spring K_s = k [n nᵀ + max(0, 1 − L/l)(I − n nᵀ)]: the transverse (geometric) term is
+// dropped for compressed springs, where it is negative, so the system stays symmetric positive
+// definite and CG applies at any h (the usual choice, Choi & Ko 2002). C_s = c n nᵀ; the damping
+// force's derivative with respect to position is neglected (Baraff & Witkin). Held and pinned
+// nodes have v1 = 0 and drop out of the system. Jacobi-preconditioned CG, matrix-free: each node
+// gathers h C_s + h² K_s (p_i − p_j) over its springs.
+
+MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
+  const int n = node_count();
+  const int chunks = node_chunk_count();
+  // One pass per node: its forces, the contact release, its row of the system and the warm-start
+  // residual. v1 starts at v0, which is zero on every contact (held or released) and pinned node,
+  // so a neighbour's release in this same pass does not change what this node reads.
+  for_each_chunk(chunks, [&](int chunk) {
+    double rhs_squared = 0.0, rz = 0.0, rr = 0.0;
+    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      if (!pinned_[i]) {
+        Eigen::Vector3d elastic, damping;
+        sum_node_forces(i, elastic, damping);
+        release_if_pulled_away(i, elastic + damping);
+        if (!held_[i]) {
+          Eigen::Vector3d diagonal = Eigen::Vector3d::Constant(mass_kg_[i]);
+          for (int e = adjacency_begin_[i]; e < adjacency_begin_[i + 1]; ++e) {
+            diagonal += spring_block_[adjacency_spring_[e]].diagonal();
+          }
+          inverse_diagonal_[i] = diagonal.cwiseInverse();
+          rhs_[i] = mass_kg_[i] * v_[i] + dt_s * elastic;
+          r_[i] = rhs_[i] - system_row_times(i, v_);
+          z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
+          p_[i] = z_[i];
+          rhs_squared += rhs_[i].squaredNorm();
+          rz += r_[i].dot(z_[i]);
+          rr += r_[i].squaredNorm();
+          continue;
+        }
+      }
+      // Not in the system: zero rows keep r, z, p (and so v's update) zero here.
+      inverse_diagonal_[i].setZero();
+      rhs_[i].setZero();
+      r_[i].setZero();
+      z_[i].setZero();
+      p_[i].setZero();
+    }
+    partial_a_[chunk] = rz;
+    partial_b_[chunk] = rr;
+    partial_c_[chunk] = rhs_squared;
+  });
+  const double reference = std::sqrt(sum_partials(partial_c_, chunks));  // ‖rhs‖
+  double rz = sum_partials(partial_a_, chunks);
+  double residual = std::sqrt(sum_partials(partial_b_, chunks));
+  int iteration = 0;
+  // Relative to the right-hand side, with a floor: near a static state the right-hand side is
+  // itself rounding, and asking for a fraction of it would spend the whole budget every step of a
+  // still probe. r / h is a force; kCgForceFloorMn of it in all is far below anything shown.
+  const double target = std::max(kCgRelativeTolerance * reference, dt_s * kCgForceFloorMn);
+  while (iteration < kMaxCgIterationsPerStep && residual > target) {
+    for_each_chunk(chunks, [&](int chunk) {
+      double pq = 0.0;
+      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+      for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+        q_[i] = moves(i) ? system_row_times(i, p_) : Eigen::Vector3d::Zero();
+        pq += p_[i].dot(q_[i]);
+      }
+      partial_a_[chunk] = pq;
+    });
+    const double pq = sum_partials(partial_a_, chunks);
+    if (!(pq > 0.0)) break;  // converged to rounding (the system is positive definite)
+    const double alpha = rz / pq;
+    for_each_chunk(chunks, [&](int chunk) {
+      double rz_chunk = 0.0, rr = 0.0;
+      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+      for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+        v_[i] += alpha * p_[i];
+        r_[i] -= alpha * q_[i];
+        z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
+        rz_chunk += r_[i].dot(z_[i]);
+        rr += r_[i].squaredNorm();
+      }
+      partial_a_[chunk] = rz_chunk;
+      partial_b_[chunk] = rr;
+    });
+    const double rz_next = sum_partials(partial_a_, chunks);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    residual = std::sqrt(sum_partials(partial_b_, chunks));
+    for_each_chunk(chunks, [&](int chunk) {
+      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+      for (int i = chunk * kNodesPerChunk; i < end; ++i) p_[i] = z_[i] + beta * p_[i];
+    });
+    ++iteration;
+  }
+  StepResult result = finish_implicit_update(dt_s);
+  result.cg_iterations = iteration;
+  result.cg_relative_residual = reference > 0.0 ? residual / reference : 0.0;
+  return result;
+}
+
+Eigen::Matrix3d MsdsEngine::implicit_spring_block(const MsdsSpring& spring,
+                                                  const Eigen::Vector3d& dir, double length_mm,
+                                                  double h) {
+  const Eigen::Matrix3d along = dir * dir.transpose();
+  const double transverse = std::max(0.0, 1.0 - spring.rest_length_mm / length_mm);
+  const Eigen::Matrix3d stiffness =
+      spring.stiffness_mn_per_mm * (along + transverse * (Eigen::Matrix3d::Identity() - along));
+  return h * spring.damping_mn_s_per_mm * along + h * h * stiffness;
+}
+
+Eigen::Vector3d MsdsEngine::system_row_times(int node,
+                                             const std::vector<Eigen::Vector3d>& p) const {
+  // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not.
+  Eigen::Vector3d sum = mass_kg_[node] * p[node];
+  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    sum += spring_block_[adjacency_spring_[e]] * (p[node] - p[adjacency_other_[e]]);
+  }
+  return sum;
+}
+
+MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s) {
+  const int n = node_count();
+  const int chunks = node_chunk_count();
+  for_each_chunk(chunks, [&](int chunk) {
+    double kinetic = 0.0;
+    bool finite = true;
+    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      if (!moves(i)) continue;
+      x_[i] += dt_s * v_[i];  // backward Euler: the new velocity moves the node
+      kinetic += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
+      finite = finite && x_[i].allFinite() && v_[i].allFinite();
+    }
+    partial_a_[chunk] = kinetic;
+    partial_finite_[chunk] = finite;
+  });
+  return gather_update_result();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Diagnostics.
+
+double MsdsEngine::explicit_stable_time_step_s() const {
+  return forward_euler_stable_time_step_s(
+      msds_max_omega_squared_bound(rest_, springs_, mass_kg_, pinned_),
+      settings_.damping_per_stiffness_s);
+}
+
+void MsdsEngine::internal_forces_mn(Eigen::VectorXd& forces_mn) const {
+  forces_mn.resize(3 * static_cast<Eigen::Index>(node_count()));
+  for (int i = 0; i < node_count(); ++i) {
+    Eigen::Vector3d elastic, damping;
+    gather_node_forces(i, elastic, damping);
+    forces_mn.segment<3>(3 * i) = elastic + damping;
+  }
+}
+
+double MsdsEngine::kinetic_energy_uj() const {
+  double energy = 0.0;
+  for (int i = 0; i < node_count(); ++i) energy += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
+  return energy;
+}
+
+double MsdsEngine::elastic_energy_uj() const {
+  double energy = 0.0;
+  for (const auto& s : springs_) {
+    const double stretch = (x_[s.b] - x_[s.a]).norm() - s.rest_length_mm;
+    energy += 0.5 * s.stiffness_mn_per_mm * stretch * stretch;
+  }
+  return energy;
+}
+
+int MsdsEngine::inverted_tet_count() const {
+  int inverted = 0;
+  for (const auto& t : tets_) {
+    inverted += geometry::signed_tet_volume(x_[t[0]], x_[t[1]], x_[t[2]], x_[t[3]]) <= 0.0;
+  }
+  return inverted;
+}
+
+}  // namespace ultrasim::sim

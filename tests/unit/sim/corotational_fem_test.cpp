@@ -1,0 +1,493 @@
+#include "ultrasim/sim/corotational_fem.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "block_fixture.hpp"
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/sim/exact_fem.hpp"
+#include "ultrasim/sim/linear_fem.hpp"
+
+namespace ultrasim::sim {
+namespace {
+
+using testing::Block;
+
+// One soft material throughout.
+Block make_block(double e_kpa = 30.0, double nu = 0.45, Eigen::Vector3i nodes = {9, 5, 5}) {
+  return testing::make_block(nodes, [&](const Eigen::Vector3d&) {
+    return Material{1, "tissue", e_kpa, nu};
+  });
+}
+
+CorotationalSettings budget(int pcg_iterations_per_frame) {
+  CorotationalSettings s;
+  s.pcg_iterations_per_frame = pcg_iterations_per_frame;
+  s.relative_tolerance = 1e-14;  // spend the whole budget
+  return s;
+}
+
+// The published sphere, its lowest point `depth_mm` below the skin at the block's centre.
+ProbeCollider sphere_probe(double depth_mm, double radius_mm = 15.0) {
+  return ProbeCollider::sphere(SphereCollider::behind_face({0, 0, depth_mm}, {0, 0, 1}, radius_mm));
+}
+
+int node_at(const geometry::TetMesh& mesh, const Eigen::Vector3d& p) {
+  for (int n = 0; n < mesh.node_count(); ++n)
+    if ((mesh.rest_positions_mm[n] - p).norm() < 1e-9) return n;
+  return -1;
+}
+
+double max_nodal_norm(const Eigen::VectorXd& v) {
+  double m = 0.0;
+  for (Eigen::Index n = 0; n < v.size() / 3; ++n) m = std::max(m, v.segment<3>(3 * n).norm());
+  return m;
+}
+
+double deformed_volume(const geometry::TetMesh& mesh, std::span<const Eigen::Vector3d> x) {
+  double v = 0.0;
+  for (const auto& t : mesh.tets)
+    v += geometry::signed_tet_volume(x[t[0]], x[t[1]], x[t[2]], x[t[3]]);
+  return v;
+}
+
+// A JobSystem on two threads: the caller and one helper started per run, taking task indices
+// from a shared counter, so tasks run interleaved and out of order.
+class TwoThreadJobs final : public hal::JobSystem {
+ public:
+  int thread_count() const override { return 2; }
+  void run(int task_count, void (*task)(void*, int), void* context) override {
+    std::atomic<int> next{0};
+    const auto drain = [&] {
+      for (int i = next.fetch_add(1); i < task_count; i = next.fetch_add(1)) task(context, i);
+    };
+    std::thread helper(drain);
+    drain();
+    helper.join();
+  }
+};
+
+TEST(CorotationalFem, RejectsAMeshWithNoFixedNodesAsSingular) {
+  Block b = make_block();
+  std::fill(b.fixed.begin(), b.fixed.end(), 0);
+  try {
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, CorotationalSettings{});
+    FAIL() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("singular"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CorotationalFem, RejectsMismatchedInputsBadTetsNonPhysicalMaterialsAndAZeroBudget) {
+  Block b = make_block();
+  const CorotationalSettings ok;
+  std::vector<Material> too_few(b.materials.begin(), b.materials.end() - 1);
+  EXPECT_THROW(CorotationalFem(b.mesh, too_few, b.fixed, ok), std::invalid_argument);
+  std::vector<std::uint8_t> short_fixed(b.fixed.begin(), b.fixed.end() - 1);
+  EXPECT_THROW(CorotationalFem(b.mesh, b.materials, short_fixed, ok), std::invalid_argument);
+  EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, budget(0)), std::invalid_argument);
+  auto bad = b.materials;
+  bad[3].poisson_ratio = 0.5;
+  EXPECT_THROW(CorotationalFem(b.mesh, bad, b.fixed, ok), std::invalid_argument);
+  bad[3] = Material{1, "nan", std::nan(""), 0.3};
+  EXPECT_THROW(CorotationalFem(b.mesh, bad, b.fixed, ok), std::invalid_argument);
+  auto flipped = b.mesh;
+  std::swap(flipped.tets[0][1], flipped.tets[0][2]);
+  EXPECT_THROW(CorotationalFem(flipped, b.materials, b.fixed, ok), std::invalid_argument);
+  auto dangling = b.mesh;
+  dangling.tets[0][0] = b.mesh.node_count();
+  EXPECT_THROW(CorotationalFem(dangling, b.materials, b.fixed, ok), std::invalid_argument);
+}
+
+// Same element stiffness, same assembly: at rest the warped stiffness is LinearFem's.
+TEST(CorotationalFem, WarpedStiffnessAtRestEqualsLinearFemStiffness) {
+  Block b = make_block();
+  CorotationalFem corot(b.mesh, b.materials, b.fixed, CorotationalSettings{});
+  LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{});
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> diff =
+      corot.warped_stiffness() - linear.stiffness();
+  EXPECT_LT(diff.norm(), 1e-12 * linear.stiffness().norm());
+}
+
+// The known defect of linear FEM: a rigid rotation is read as strain (Cauchy strain is not
+// rotation invariant), so it takes force to rotate the tissue and large rotations inflate it.
+TEST(CorotationalFem, RigidRotationNeedsNoForceWhileLinearFemPushesBack) {
+  Block b = make_block();
+  CorotationalFem corot(b.mesh, b.materials, b.fixed, CorotationalSettings{});
+  LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{});
+  const Eigen::Matrix3d q =
+      Eigen::AngleAxisd(40.0 * M_PI / 180.0, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  const Eigen::Vector3d centre(3, -2, 10);
+  std::vector<Eigen::Vector3d> rotated;
+  Eigen::VectorXd u(3 * b.mesh.node_count());
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& x = b.mesh.rest_positions_mm[n];
+    rotated.push_back(centre + q * (x - centre) + Eigen::Vector3d(1, 2, -3));
+    u.segment<3>(3 * n) = rotated.back() - x;
+  }
+  Eigen::VectorXd corot_force;
+  corot.elastic_forces_mn(rotated, corot_force);
+  const Eigen::VectorXd linear_force = linear.stiffness() * u;
+  EXPECT_GT(max_nodal_norm(linear_force), 100.0) << "mN: linear FEM resists the rotation";
+  EXPECT_LT(max_nodal_norm(corot_force), 1e-10 * max_nodal_norm(linear_force));
+}
+
+// Patch test, finite version: with the boundary held on a rotated uniform stretch x = Q S X,
+// every tet has the same rotation Q and the interior reproduces the field exactly.
+TEST(CorotationalFem, ReproducesARotatedUniformStretchExactly) {
+  Block b = make_block();
+  const auto& rest = b.mesh.rest_positions_mm;
+  const Eigen::Vector3d anchor_x(0, 0, 20);
+  const int anchor = node_at(b.mesh, anchor_x);
+  ASSERT_GE(anchor, 0);
+  const Eigen::Matrix3d q =
+      Eigen::AngleAxisd(30.0 * M_PI / 180.0, Eigen::Vector3d(0.3, -1, 0.5).normalized()).matrix();
+  Eigen::Matrix3d stretch;
+  stretch << 1.08, 0.02, 0.0, 0.02, 0.97, 0.01, 0.0, 0.01, 0.95;
+  const auto field = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+    return anchor_x + q * stretch * (x - anchor_x) - x;
+  };
+  std::vector<std::uint8_t> fixed(b.fixed.size(), 0);
+  fixed[anchor] = 1;  // the field is zero there
+  CorotationalFem fem(b.mesh, b.materials, fixed, CorotationalSettings{});
+  int interior = 0;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& x = rest[n];
+    const bool boundary = std::abs(std::abs(x.x()) - 20) < 1e-9 ||
+                          std::abs(std::abs(x.y()) - 10) < 1e-9 || x.z() == 0.0 || x.z() == 20.0;
+    if (boundary && n != anchor) {
+      fem.prescribe_displacement(n, field(x));
+    } else {
+      ++interior;
+    }
+  }
+  ASSERT_GT(interior, 10);
+  const auto result = fem.solve_to_convergence(1e-11, 100);
+  EXPECT_TRUE(result.converged) << "last change " << result.last_change_mm;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    EXPECT_LT((fem.displacements_mm().segment<3>(3 * n) - field(rest[n])).norm(), 1e-8)
+        << "node " << n;
+  }
+  for (int t = 0; t < b.mesh.tet_count(); ++t) {
+    EXPECT_LT((fem.tet_rotation(t) - q).norm(), 1e-9) << "tet " << t;
+  }
+  // Every tet turned by Q: the warped stiffness is LinearFem's turned by Q, Σ Q K_e Qᵀ.
+  const LinearFem linear(b.mesh, b.materials, fixed, FemSettings{});
+  std::vector<Eigen::Triplet<double>> q_blocks;
+  for (int n = 0; n < b.mesh.node_count(); ++n)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) q_blocks.emplace_back(3 * n + i, 3 * n + j, q(i, j));
+  Eigen::SparseMatrix<double, Eigen::RowMajor> big_q(3 * b.mesh.node_count(),
+                                                     3 * b.mesh.node_count());
+  big_q.setFromTriplets(q_blocks.begin(), q_blocks.end());
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> turned =
+      big_q * linear.stiffness() * Eigen::SparseMatrix<double, Eigen::RowMajor>(big_q.transpose());
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> diff = fem.warped_stiffness() - turned;
+  EXPECT_LT(diff.norm(), 1e-8 * turned.norm());
+}
+
+// Small deformations are the linear regime. Corotational FEM is linear FEM plus terms of the
+// order of the tets' rotations, so the converged answers differ by ~the local rotation (here the
+// single node under a 0.1 mm press on a 5 mm mesh turns its tets by ~0.02 rad, giving ~3e-3) and
+// the difference vanishes in proportion to the press.
+TEST(CorotationalFem, SmallPressAgreesWithConvergedLinearFemAndTheGapShrinksWithThePress) {
+  Block b = make_block();
+  struct Gap {
+    double displacement = 0.0;  // max nodal |u_corot − u_linear| / max |u_linear|
+    double force = 0.0;         // |F_corot / F_linear − 1|
+  };
+  const auto gap_at = [&](double depth_mm) {
+    LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{2000, 1e-13});
+    const auto linear_stats =
+        linear.step(SphereCollider::behind_face({0, 0, depth_mm}, {0, 0, 1}, 15.0));
+    linear.solve_to_tolerance(1e-13, 5000);
+    CorotationalFem corot(b.mesh, b.materials, b.fixed, budget(2000));
+    const ProbeCollider probe = sphere_probe(depth_mm);
+    const auto step_stats = corot.step(&probe, 0.0);
+    EXPECT_EQ(step_stats.contact_nodes, linear_stats.contact_nodes) << "same contacts";
+    const auto converged = corot.solve_to_convergence(1e-13, 100);
+    EXPECT_TRUE(converged.converged);
+    Eigen::VectorXd u_linear(3 * b.mesh.node_count());
+    for (int n = 0; n < b.mesh.node_count(); ++n)
+      u_linear.segment<3>(3 * n) = linear.displacement_mm(n);
+    return Gap{max_nodal_norm(corot.displacements_mm() - u_linear) / max_nodal_norm(u_linear),
+               std::abs(converged.stats.contact_force_n / linear_stats.contact_force_n - 1.0)};
+  };
+  const Gap press_100um = gap_at(0.1), press_10um = gap_at(0.01);
+  EXPECT_LT(press_100um.displacement, 5e-3);
+  EXPECT_LT(press_100um.force, 2e-2);
+  EXPECT_LT(press_10um.displacement, 5e-4);
+  EXPECT_LT(press_10um.force, 2e-3);
+  EXPECT_NEAR(press_100um.displacement / press_10um.displacement, 10.0, 1.0)
+      << "the gap is first order in the press";
+}
+
+TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhenLifted) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  double last_force = 0.0;
+  for (double depth : {1.0, 2.0, 3.0, 4.0}) {
+    const ProbeCollider probe = sphere_probe(depth);
+    EngineStepStats stats;
+    for (int frame = 0; frame < 30; ++frame) stats = fem.step(&probe, 1.0 / 30);
+    EXPECT_GT(stats.contact_nodes, 0);
+    EXPECT_GT(stats.contact_force_n, last_force);
+    EXPECT_FALSE(stats.diverged);
+    last_force = stats.contact_force_n;
+    for (int n = 0; n < fem.node_count(); ++n) {
+      EXPECT_GT(probe.signed_distance_mm(fem.deformed_positions_mm()[n]), -0.05)
+          << "node " << n << " left inside the probe at depth " << depth;
+    }
+  }
+  const int top_centre = node_at(b.mesh, {0, 0, 0});
+  ASSERT_GE(top_centre, 0);
+  EXPECT_NEAR(fem.displacements_mm()[3 * top_centre + 2], 4.0, 1e-9);
+  EngineStepStats lifted;
+  for (int frame = 0; frame < 300; ++frame) lifted = fem.step(nullptr, 1.0 / 30);
+  EXPECT_EQ(lifted.contact_nodes, 0);
+  EXPECT_LT(max_nodal_norm(fem.displacements_mm()), 1e-6);
+}
+
+// Compressed tissue follows a probe that lifts slowly: the contact holds while the probe is
+// still below the skin, the force falls smoothly, and no frame has to be cut short. Contact ends
+// when holding on would take a pull, not when the probe moves a hair away.
+TEST(CorotationalFem, TissueFollowsASlowlyLiftingProbe) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  for (int frame = 0; frame <= 60; ++frame) {
+    const ProbeCollider probe = sphere_probe(4.0 * frame / 60);
+    fem.step(&probe, 1.0 / 30);
+  }
+  double last_force = 1e9;
+  for (int frame = 60; frame >= 6; --frame) {  // lift from 4 mm to 0.4 mm below the skin
+    const ProbeCollider probe = sphere_probe(4.0 * frame / 60);
+    const auto stats = fem.step(&probe, 1.0 / 30);
+    EXPECT_GT(stats.contact_nodes, 0) << "contact lost at depth " << 4.0 * frame / 60;
+    EXPECT_LE(stats.contact_force_n, last_force * 1.05) << "depth " << 4.0 * frame / 60;
+    EXPECT_FALSE(stats.diverged) << "depth " << 4.0 * frame / 60;
+    last_force = stats.contact_force_n;
+  }
+  const ProbeCollider lifted = sphere_probe(-2.0);
+  EXPECT_EQ(fem.step(&lifted, 1.0 / 30).contact_nodes, 0);
+}
+
+// The probe can push but not pull: a node it holds on its surface whose tissue draws it away
+// (here a load pulling the node deeper) is let go on the next frame instead of sticking to it.
+TEST(CorotationalFem, ContactNodeTheProbeWouldHaveToPullIsLetGo) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(50));
+  const ProbeCollider probe = sphere_probe(1.0);
+  const int skin_centre = node_at(b.mesh, {0, 0, 0});
+  EngineStepStats pressed;
+  for (int frame = 0; frame < 10; ++frame) pressed = fem.step(&probe, 1.0 / 30);
+  ASSERT_GT(pressed.contact_nodes, 0);
+  EXPECT_NEAR(probe.signed_distance_mm(fem.deformed_positions_mm()[skin_centre]), 0.0, 1e-6);
+  // Pull the node into the tissue with several times the whole press force.
+  fem.set_nodal_load(skin_centre, {0, 0, 5000.0 * pressed.contact_force_n});
+  EngineStepStats pulled;
+  for (int frame = 0; frame < 10; ++frame) pulled = fem.step(&probe, 1.0 / 30);
+  EXPECT_GT(probe.signed_distance_mm(fem.deformed_positions_mm()[skin_centre]), 0.1)
+      << "the node left the probe's surface";
+  EXPECT_LT(pulled.contact_nodes, pressed.contact_nodes);
+  for (int n = 0; n < fem.node_count(); ++n) {
+    EXPECT_GT(probe.signed_distance_mm(fem.deformed_positions_mm()[n]), -0.05) << "node " << n;
+  }
+}
+
+// A cantilever 40 mm long bent by a tip load to large deflection. Linear FEM moves every point
+// straight across the beam, so the beam stretches (and gains volume); corotational FEM swings
+// the tip on an arc and keeps the beam's length.
+TEST(CorotationalFem, CantileverKeepsItsLengthUnderLargeDeflectionWhereLinearFemStretches) {
+  geometry::TetMesh mesh = geometry::make_grid_tet_mesh(
+      geometry::GridSpec::spanning({0, -2, -2}, {40, 2, 2}, {21, 3, 3}));
+  const std::vector<Material> materials(mesh.tets.size(), Material{1, "beam", 100.0, 0.3});
+  std::vector<std::uint8_t> fixed(mesh.node_count(), 0);
+  std::vector<int> tip, centreline;
+  for (int n = 0; n < mesh.node_count(); ++n) {
+    const Eigen::Vector3d& x = mesh.rest_positions_mm[n];
+    fixed[n] = x.x() == 0.0;
+    if (x.x() == 40.0) tip.push_back(n);
+    if (x.y() == 0.0 && x.z() == 0.0) centreline.push_back(n);  // ascending x
+  }
+  ASSERT_EQ(centreline.size(), 21u);
+  const auto length = [&](std::span<const Eigen::Vector3d> x) {
+    double l = 0.0;
+    for (std::size_t i = 1; i < centreline.size(); ++i)
+      l += (x[centreline[i]] - x[centreline[i - 1]]).norm();
+    return l;
+  };
+  const double rest_volume = deformed_volume(mesh, mesh.rest_positions_mm);
+
+  // Linear answer, scaled so that the tip goes down half the beam's length.
+  ExactFem linear(mesh, materials, fixed);
+  for (int n : tip) linear.set_nodal_load(n, {0, 0, -1.0 / tip.size()});
+  linear.solve(std::span<const PrescribedNode>{});
+  const double unit_deflection = -linear.displacement_mm(centreline.back()).z();
+  const double load_mn = 20.0 / unit_deflection;
+  for (int n : tip) linear.set_nodal_load(n, {0, 0, -load_mn / tip.size()});
+  linear.solve(std::span<const PrescribedNode>{});
+  ASSERT_NEAR(-linear.displacement_mm(centreline.back()).z(), 20.0, 1e-6);
+
+  // Corotational answer, the load applied in steps (each converged) as a quasi-static ramp.
+  CorotationalFem corot(mesh, materials, fixed, CorotationalSettings{});
+  constexpr int kLoadSteps = 8;
+  for (int s = 1; s <= kLoadSteps; ++s) {
+    for (int n : tip) corot.set_nodal_load(n, {0, 0, -load_mn * s / kLoadSteps / tip.size()});
+    const auto result = corot.solve_to_convergence(1e-8, 300);
+    ASSERT_TRUE(result.converged) << "load step " << s << ", last change " << result.last_change_mm;
+  }
+  const Eigen::Vector3d corot_tip = corot.deformed_positions_mm()[centreline.back()];
+
+  EXPECT_GT(length(linear.deformed_positions_mm()), 1.08 * 40.0);
+  EXPECT_GT(deformed_volume(mesh, linear.deformed_positions_mm()), 1.2 * rest_volume);
+  EXPECT_NEAR(length(corot.deformed_positions_mm()), 40.0, 0.02 * 40.0);
+  EXPECT_NEAR(deformed_volume(mesh, corot.deformed_positions_mm()), rest_volume,
+              0.02 * rest_volume);
+  EXPECT_LT(corot_tip.x(), 37.0) << "the tip swings inward on its arc";
+  EXPECT_LT(corot_tip.z(), -12.0) << "and still goes well down";
+}
+
+// The per-frame method runs a few PCG iterations on rotations one frame old. With the probe held
+// still, more iterations per frame bring it closer to the converged answer (down to the floor the
+// rotation lag leaves after that many frames), and frame after frame it reaches that answer.
+TEST(CorotationalFem, PerFrameBudgetApproachesTheConvergedAnswerAsIterationsGrow) {
+  Block b = make_block();
+  const ProbeCollider probe = sphere_probe(3.0);
+  const auto error_after = [&](int frames, int iterations) {
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(iterations));
+    for (int frame = 0; frame < frames; ++frame) fem.step(&probe, 1.0 / 30);
+    const Eigen::VectorXd per_frame = fem.displacements_mm();
+    const auto converged = fem.solve_to_convergence(1e-12, 100);  // same contacts
+    EXPECT_TRUE(converged.converged);
+    return max_nodal_norm(per_frame - fem.displacements_mm()) /
+           max_nodal_norm(fem.displacements_mm());
+  };
+  double last_error = 1e9;
+  for (int iterations : {2, 5, 10, 20}) {
+    const double error = error_after(3, iterations);
+    EXPECT_LT(error, 0.6 * last_error) << iterations << " iterations per frame";
+    last_error = error;
+  }
+  EXPECT_LT(last_error, 1e-3) << "20 iterations, 3 frames";
+  EXPECT_LT(error_after(10, 20), 1e-6) << "the published budget, 10 frames";
+}
+
+TEST(CorotationalFem, ParallelStepsEqualSerialStepsBitwise) {
+  Block b = make_block(30.0, 0.45, {17, 9, 9});  // several chunks of tets and nodes
+  TwoThreadJobs jobs;
+  CorotationalFem serial(b.mesh, b.materials, b.fixed, budget(20));
+  CorotationalFem parallel(b.mesh, b.materials, b.fixed, budget(20), &jobs);
+  for (int frame = 0; frame < 6; ++frame) {
+    const ProbeCollider probe = sphere_probe(0.8 * frame);
+    const auto s = serial.step(&probe, 1.0 / 30);
+    const auto p = parallel.step(&probe, 1.0 / 30);
+    EXPECT_EQ(s.contact_nodes, p.contact_nodes);
+    EXPECT_EQ(s.contact_force_n, p.contact_force_n);
+    EXPECT_EQ(s.relative_residual, p.relative_residual);
+    ASSERT_TRUE(serial.displacements_mm() == parallel.displacements_mm()) << "frame " << frame;
+  }
+  serial.solve_to_convergence(1e-6, 5);
+  parallel.solve_to_convergence(1e-6, 5);
+  EXPECT_TRUE(serial.displacements_mm() == parallel.displacements_mm());
+}
+
+// A node held far through its neighbours would fold tets over: the frame is cut short (the
+// tissue lags) instead, the inversion is reported, and nothing non-finite appears.
+TEST(CorotationalFem, InvertingFrameIsBacktrackedReportedAndLeavesNoNaN) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  const int skin_centre = node_at(b.mesh, {0, 0, 0});
+  ASSERT_GE(skin_centre, 0);
+  fem.prescribe_displacement(skin_centre, {0, 0, 14.0});  // the node below sits at z = 5
+  const auto stats = fem.step(nullptr, 1.0 / 30);
+  EXPECT_GT(stats.inverted_tets, 0);
+  EXPECT_TRUE(stats.diverged);
+  EXPECT_EQ(stats.recovery, Recovery::kSubstepped);
+  EXPECT_TRUE(fem.displacements_mm().allFinite());
+  EXPECT_EQ(fem.inverted_tet_count(), 0);
+  const double reached = fem.displacements_mm()[3 * skin_centre + 2];
+  EXPECT_GT(reached, 0.0);
+  EXPECT_LT(reached, 14.0);
+}
+
+// A shape with folded tets (say, handed over by another engine) is reported, its rotations stay
+// proper rotations (no reflections), and the frames that follow unfold it without ever adding a
+// fold or producing NaN.
+TEST(CorotationalFem, InvertedShapeIsCountedRotationsStayProperAndFramesUnfoldIt) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  const int skin_centre = node_at(b.mesh, {0, 0, 0});
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  u[3 * skin_centre + 2] = 14.0;  // through the two nodes below it
+  fem.set_displacements_mm(u);
+  int folded = fem.inverted_tet_count();
+  EXPECT_GT(folded, 0);
+  for (int frame = 0; frame < 5; ++frame) {
+    fem.step(nullptr, 1.0 / 30);
+    ASSERT_TRUE(fem.displacements_mm().allFinite()) << "frame " << frame;
+    EXPECT_LE(fem.inverted_tet_count(), folded) << "frame " << frame;
+    folded = fem.inverted_tet_count();
+    if (frame == 0) {
+      for (int t = 0; t < b.mesh.tet_count(); ++t) {
+        const Eigen::Matrix3d& r = fem.tet_rotation(t);  // from the folded shape
+        EXPECT_NEAR(r.determinant(), 1.0, 1e-9) << "tet " << t;
+        EXPECT_LT((r.transpose() * r - Eigen::Matrix3d::Identity()).norm(), 1e-9) << "tet " << t;
+      }
+    }
+  }
+  EXPECT_EQ(folded, 0) << "unfolded within 5 frames";
+}
+
+// A load no tissue could bear blows the frame up: the frame is thrown away and the tissue keeps
+// the previous frame's shape (not rest: the probe may still be deep in it).
+TEST(CorotationalFem, BlownUpFrameIsThrownAwayKeepingThePreviousShape) {
+  Block b = make_block();
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  const ProbeCollider probe = sphere_probe(2.0);
+  for (int frame = 0; frame < 3; ++frame) fem.step(&probe, 1.0 / 30);
+  const Eigen::VectorXd before = fem.displacements_mm();
+  fem.set_nodal_load(node_at(b.mesh, {10, 0, 0}), {0, 0, 1e150});
+  const auto stats = fem.step(&probe, 1.0 / 30);
+  EXPECT_TRUE(stats.diverged);
+  EXPECT_EQ(stats.recovery, Recovery::kSubstepped);
+  EXPECT_TRUE(fem.displacements_mm() == before);
+  for (const auto& p : fem.deformed_positions_mm()) EXPECT_TRUE(p.allFinite());
+}
+
+// Live switch: an engine handed another's displacements continues exactly as the other would.
+TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
+  Block b = make_block();
+  const ProbeCollider probe = sphere_probe(3.0);
+  CorotationalFem first(b.mesh, b.materials, b.fixed, budget(20));
+  for (int frame = 0; frame < 5; ++frame) first.step(&probe, 1.0 / 30);
+  Eigen::VectorXd handed_over = first.displacements_mm();
+  for (int n = 0; n < b.mesh.node_count(); ++n)
+    if (b.fixed[n]) handed_over.segment<3>(3 * n) = Eigen::Vector3d(1, 2, 3);  // ignored
+
+  CorotationalFem second(b.mesh, b.materials, b.fixed, budget(20));
+  second.set_displacements_mm(handed_over);
+  EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    EXPECT_TRUE(second.deformed_positions_mm()[n] == first.deformed_positions_mm()[n]);
+  }
+  first.step(&probe, 1.0 / 30);
+  second.step(&probe, 1.0 / 30);
+  EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
+
+  EXPECT_THROW(second.set_displacements_mm(Eigen::VectorXd::Zero(5)), std::invalid_argument);
+  Eigen::VectorXd with_nan = first.displacements_mm();
+  with_nan[7] = std::nan("");
+  EXPECT_THROW(second.set_displacements_mm(with_nan), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace ultrasim::sim
