@@ -16,9 +16,9 @@ namespace {
 
 struct LockingRow {
   double nu;
-  int pcg_iterations;    // to a 1e-8 relative residual from rest
-  double force_n;        // exact: the press's force
-  double exact_vs_pcg;   // relative max difference, PCG converged vs exact
+  int pcg_iterations;   // to a 1e-8 relative residual from rest
+  double force_n;       // exact: the press's force
+  double exact_vs_pcg;  // relative max difference, PCG converged vs exact
 };
 
 LockingRow press_with(double nu) {
