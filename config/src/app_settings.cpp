@@ -142,6 +142,9 @@ TableSchema<sim::MsdsSettings> msds_schema() {
               "physical masses the limit is ~1e-7 s); statics unchanged, motion slower."));
   t.add(field("implicit_steps_per_frame", &S::implicit_steps_per_frame, IntegerIn<int>{1, 10'000},
               "Implicit Euler covers the frame's simulated time in this many steps."));
+  t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
+              "More inverted tets than this fraction of all fail a step (substep, then keep the "
+              "last good shape)."));
   return t;
 }
 

@@ -483,7 +483,8 @@ TEST(MsdsRecovery, ProbeDeeperThanTheTissueReportsInvertedTetsAndNeverNaN) {
       const auto stats = engine.step(&through, 1.0 / 30);
       EXPECT_TRUE(stats.diverged) << engine.name();
       EXPECT_GT(stats.inverted_tets, 0) << engine.name();
-      EXPECT_EQ(stats.recovery, Recovery::kReset) << engine.name();
+      // Smaller steps cannot unfold them: the last good shape (rest, here) is kept.
+      EXPECT_EQ(stats.recovery, Recovery::kKeptLastGood) << engine.name();
       EXPECT_TRUE(engine.displacements_mm().allFinite()) << engine.name();
       EXPECT_EQ(engine.inverted_tet_count(), 0) << engine.name();
     }

@@ -69,7 +69,9 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 // step but the first, every 4th explicit one and the last: the first step takes the probe's whole
 // move since the last frame and may fold tets under it for that one step). The frame is then re-run
 // from its start with the step halved, up to kMaxHalvings times (Recovery::kSubstepped); if every
-// try fails, the tissue is reset to rest (Recovery::kReset). Both set diverged; inverted_tets
+// try fails, the tissue is reset to rest (Recovery::kReset) after a blow-up, or kept at the
+// frame's start, at rest, when the tries failed only on inverted tets (Recovery::kKeptLastGood: a
+// probe folding tets under its rim, which no step size fixes). All set diverged; inverted_tets
 // counts the first attempt's inverted tets (0 when accepted: an accepted frame has none). The
 // displacements shown are always finite. Each frame starts again at time_step_s: a step past the
 // limit is caught again, every few frames.
@@ -161,6 +163,7 @@ class MsdsEngine final : public DeformationEngine {
   };
   struct AttemptResult {
     bool accepted = false;
+    bool blew_up = false;  // non-finite or kinetic energy past the ceiling (not just inversion)
     int inverted_tets = 0;
     int iterations = 0;  // integration steps (explicit) or CG iterations (implicit)
     double relative_residual = 0.0;

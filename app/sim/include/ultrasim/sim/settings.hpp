@@ -47,6 +47,8 @@ struct MsdsSettings {
   bool scale_mass_for_explicit_step = true;
   // Implicit Euler is stable at any step: it covers the frame's simulated time in this many steps.
   int implicit_steps_per_frame = 2;
+  // As FemSettings::max_inverted_fraction: more inverted tets than this fraction fail a step.
+  double max_inverted_fraction = 0.005;
 };
 
 // Corotational linear FEM: per-tet rotation extracted by polar decomposition each frame, the
