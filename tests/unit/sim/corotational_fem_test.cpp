@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
@@ -59,22 +60,6 @@ double deformed_volume(const geometry::TetMesh& mesh, std::span<const Eigen::Vec
     v += geometry::signed_tet_volume(x[t[0]], x[t[1]], x[t[2]], x[t[3]]);
   return v;
 }
-
-// A JobSystem on two threads: the caller and one helper started per run, taking task indices
-// from a shared counter, so tasks run interleaved and out of order.
-class TwoThreadJobs final : public hal::JobSystem {
- public:
-  int thread_count() const override { return 2; }
-  void run(int task_count, void (*task)(void*, int), void* context) override {
-    std::atomic<int> next{0};
-    const auto drain = [&] {
-      for (int i = next.fetch_add(1); i < task_count; i = next.fetch_add(1)) task(context, i);
-    };
-    std::thread helper(drain);
-    drain();
-    helper.join();
-  }
-};
 
 TEST(CorotationalFem, RejectsAMeshWithNoFixedNodesAsSingular) {
   Block b = make_block();
@@ -383,7 +368,7 @@ TEST(CorotationalFem, PerFrameBudgetApproachesTheConvergedAnswerAsIterationsGrow
 
 TEST(CorotationalFem, ParallelStepsEqualSerialStepsBitwise) {
   Block b = make_block(30.0, 0.45, {17, 9, 9});  // several chunks of tets and nodes
-  TwoThreadJobs jobs;
+  ultrasim::testing::TwoThreadJobs jobs;
   CorotationalFem serial(b.mesh, b.materials, b.fixed, budget(20));
   CorotationalFem parallel(b.mesh, b.materials, b.fixed, budget(20), &jobs);
   for (int frame = 0; frame < 6; ++frame) {

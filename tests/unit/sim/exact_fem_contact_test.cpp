@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "two_thread_jobs.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
 
 namespace ultrasim::sim {
@@ -78,21 +79,6 @@ Eigen::VectorXd direct_solve_with_known_dofs(const ExactFem& fem,
 double relative_max_error(const Eigen::VectorXd& got, const Eigen::VectorXd& want) {
   return (got - want).lpNorm<Eigen::Infinity>() / want.lpNorm<Eigen::Infinity>();
 }
-
-// Two threads, the caller one of them.
-class TwoThreadJobs final : public hal::JobSystem {
- public:
-  int thread_count() const override { return 2; }
-  void run(int task_count, void (*task)(void*, int), void* context) override {
-    std::atomic<int> next{0};
-    auto work = [&] {
-      for (int i = next++; i < task_count; i = next++) task(context, i);
-    };
-    std::thread helper(work);
-    work();
-    helper.join();
-  }
-};
 
 TEST(ExactFemContact, PrecomputedSkinGreensFunctionsMatchSolvesWithTheFactor) {
   const Block b = make_block();
@@ -200,7 +186,7 @@ TEST(ExactFemContact, TiltedProbeReleasesNodesItWouldPullAndTakesInNodesPushedIn
 
 TEST(ExactFemContact, ParallelFieldUpdateEqualsSerial) {
   const Block b = make_block();
-  TwoThreadJobs jobs;
+  ultrasim::testing::TwoThreadJobs jobs;
   ExactFem serial(b.mesh, b.materials, b.fixed, {}, skin_nodes(b));
   ExactFem parallel(b.mesh, b.materials, b.fixed, {}, skin_nodes(b), &jobs);
   for (int frame = 0; frame < 3; ++frame) {

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "block_fixture.hpp"
+#include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
@@ -68,21 +69,6 @@ int node_at(const Block& b, const Eigen::Vector3d& p) {
 double mechanical_energy_uj(const MsdsEngine& e) {
   return e.kinetic_energy_uj() + e.elastic_energy_uj();
 }
-
-// Two threads, the caller one of them; a helper thread per run() is fine for a test.
-class TwoThreadJobSystem final : public hal::JobSystem {
- public:
-  int thread_count() const override { return 2; }
-  void run(int task_count, void (*task)(void*, int), void* context) override {
-    std::atomic<int> next{0};
-    auto work = [&] {
-      for (int i = next++; i < task_count; i = next++) task(context, i);
-    };
-    std::thread helper(work);
-    work();
-    helper.join();
-  }
-};
 
 // ---------------------------------------------------------------------------------------------
 // The model: springs, masses, validation.
@@ -601,7 +587,7 @@ TEST(MsdsPress, ContactForceGrowsWithPressDepth) {
 
 TEST(MsdsJobs, ResultsAreBitwiseIdenticalWithAndWithoutTwoThreads) {
   const Block b = make_block(30.0, {13, 9, 9});  // several node, spring and tet chunks
-  TwoThreadJobSystem jobs;
+  ultrasim::testing::TwoThreadJobs jobs;
   for (auto integrator : {kExplicit, kImplicit}) {
     const MsdsSettings s =
         integrator == kImplicit ? with_step(0.01, 3) : with_step(0.5 * explicit_bound_s(b), 10);
