@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "model_checks.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
 namespace ultrasim::sim {
@@ -27,15 +28,6 @@ constexpr double kConvergedRelativeResidual = 1e-12;
 
 int encode_contribution(int tet, int a, int b) {
   return 16 * tet + 4 * a + b;
-}
-
-void check_material(const Material& m) {
-  if (!(m.youngs_modulus_kpa > 0) || !std::isfinite(m.youngs_modulus_kpa)) {
-    throw std::invalid_argument("material '" + m.name + "': youngs_modulus_kpa must be > 0");
-  }
-  if (!(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5)) {
-    throw std::invalid_argument("material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
-  }
 }
 
 Eigen::Matrix3d edge_matrix(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
@@ -136,25 +128,14 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
       tets_(mesh.tets),
       fixed_(fixed_nodes.begin(), fixed_nodes.end()) {
   const int n = mesh.node_count();
-  if (tet_materials.size() != mesh.tets.size()) {
-    throw std::invalid_argument("CorotationalFem: need one material per tet");
-  }
-  if (fixed_.size() != static_cast<std::size_t>(n)) {
-    throw std::invalid_argument("CorotationalFem: need one fixed flag per node");
-  }
-  for (auto f : fixed_) fixed_count_ += f ? 1 : 0;
-  if (fixed_count_ == 0) {
-    throw std::invalid_argument(
-        "no fixed nodes: the stiffness matrix is singular (the tissue could float away); fix a "
-        "face or a label in the case's [mesh] table");
-  }
+  fixed_count_ = check_tet_model("CorotationalFem", mesh, tet_materials, fixed_nodes);
   if (settings.pcg_iterations_per_frame < 1) {
     throw std::invalid_argument("pcg_iterations_per_frame must be >= 1");
   }
   if (!(settings.relative_tolerance >= 0.0) || !std::isfinite(settings.relative_tolerance)) {
     throw std::invalid_argument("relative_tolerance must be finite and >= 0");
   }
-  validate_and_precompute_tets(mesh, tet_materials);
+  precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
 
   const int dofs = 3 * n;
@@ -175,27 +156,15 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   assemble_warped_system();
 }
 
-void CorotationalFem::validate_and_precompute_tets(const geometry::TetMesh& mesh,
-                                                   std::span<const Material> tet_materials) {
-  const int n = mesh.node_count();
+void CorotationalFem::precompute_tets(std::span<const Material> tet_materials) {
   shape_gradients_.resize(tets_.size());
   lame_volume_.resize(tets_.size());
   for (std::size_t t = 0; t < tets_.size(); ++t) {
     const auto& tet = tets_[t];
-    for (int a = 0; a < 4; ++a) {
-      if (tet[a] < 0 || tet[a] >= n) {
-        throw std::invalid_argument("tet " + std::to_string(t) + " references node " +
-                                    std::to_string(tet[a]) + ", outside the mesh");
-      }
-    }
     const Material& m = tet_materials[t];
-    check_material(m);
     const auto& p = rest_;
     const Eigen::Matrix3d edges = edge_matrix(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]);
     const double volume = edges.determinant() / 6.0;
-    if (!(volume > 0)) {
-      throw std::invalid_argument("tet " + std::to_string(t) + " has no positive volume");
-    }
     // Rows of edges⁻¹ are the gradients of the shape functions of nodes 1..3.
     const Eigen::Matrix3d grads = edges.inverse();
     auto& g = shape_gradients_[t];

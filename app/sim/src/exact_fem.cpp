@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "model_checks.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
 namespace ultrasim::sim {
@@ -52,9 +53,9 @@ ExactFem::ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_
       in_contact_(mesh.rest_positions_mm.size(), 0),
       released_(mesh.rest_positions_mm.size(), 0),
       deformed_(mesh.rest_positions_mm) {
-  // LinearFem validates the inputs (one material per tet, ranges, positive volumes, at least one
-  // fixed node) and assembles the identical stiffness: one model, two solvers.
-  stiffness_ = LinearFem(mesh, tet_materials, fixed_nodes, FemSettings{}).stiffness();
+  // The same model and stiffness as LinearFem: one model, two solvers.
+  check_tet_model("ExactFem", mesh, tet_materials, fixed_nodes);
+  stiffness_ = assemble_stiffness(mesh, tet_materials);
   if (settings.max_cached_nodes < 0) {
     throw std::invalid_argument("ExactFem: max_cached_nodes must be >= 0");
   }

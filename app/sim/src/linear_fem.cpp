@@ -7,20 +7,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "model_checks.hpp"
+
 namespace ultrasim::sim {
-
-namespace {
-
-void check_material(const Material& m) {
-  if (!(m.youngs_modulus_kpa > 0) || !std::isfinite(m.youngs_modulus_kpa)) {
-    throw std::invalid_argument("material '" + m.name + "': youngs_modulus_kpa must be > 0");
-  }
-  if (!(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5)) {
-    throw std::invalid_argument("material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
-  }
-}
-
-}  // namespace
 
 Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
                                             const Eigen::Vector3d& p2, const Eigen::Vector3d& p3,
@@ -60,6 +49,29 @@ Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Vector3d& p0, const Eig
   return volume * b.transpose() * d * b;
 }
 
+Eigen::SparseMatrix<double, Eigen::RowMajor> assemble_stiffness(
+    const geometry::TetMesh& mesh, std::span<const Material> tet_materials) {
+  const auto& p = mesh.rest_positions_mm;
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(mesh.tets.size() * 144);
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
+    const auto& tet = mesh.tets[t];
+    const auto ke =
+        tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
+                      tet_materials[t].youngs_modulus_kpa, tet_materials[t].poisson_ratio);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            triplets.emplace_back(3 * tet[a] + i, 3 * tet[b] + j, ke(3 * a + i, 3 * b + j));
+  }
+  const int dofs = 3 * mesh.node_count();
+  Eigen::SparseMatrix<double, Eigen::RowMajor> k(dofs, dofs);
+  k.setFromTriplets(triplets.begin(), triplets.end());
+  k.makeCompressed();
+  return k;
+}
+
 LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
                      std::span<const std::uint8_t> fixed_nodes, const FemSettings& settings)
     : settings_(settings),
@@ -74,46 +86,14 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
       tets_(mesh.tets),
       deformed_(mesh.rest_positions_mm) {
   const int n = mesh.node_count();
-  if (tet_materials.size() != mesh.tets.size()) {
-    throw std::invalid_argument("LinearFem: need one material per tet");
-  }
-  if (fixed_.size() != static_cast<std::size_t>(n)) {
-    throw std::invalid_argument("LinearFem: need one fixed flag per node");
-  }
-  for (auto f : fixed_) fixed_count_ += f ? 1 : 0;
-  if (fixed_count_ == 0) {
-    throw std::invalid_argument(
-        "no fixed nodes: the stiffness matrix is singular (the tissue could float away); fix a "
-        "face or a label in the case's [mesh] table");
-  }
+  fixed_count_ = check_tet_model("LinearFem", mesh, tet_materials, fixed_nodes);
   if (settings.pcg_iterations_per_frame < 1) {
     throw std::invalid_argument("pcg_iterations_per_frame must be >= 1");
   }
   if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
     throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
-
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(mesh.tets.size() * 144);
-  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
-    const auto& tet = mesh.tets[t];
-    check_material(tet_materials[t]);
-    const auto& p = rest_;
-    if (geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]) <= 0) {
-      throw std::invalid_argument("tet " + std::to_string(t) + " has no positive volume");
-    }
-    const auto ke =
-        tet_stiffness(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]],
-                      tet_materials[t].youngs_modulus_kpa, tet_materials[t].poisson_ratio);
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b)
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            triplets.emplace_back(3 * tet[a] + i, 3 * tet[b] + j, ke(3 * a + i, 3 * b + j));
-  }
-  stiffness_.resize(3 * n, 3 * n);
-  stiffness_.setFromTriplets(triplets.begin(), triplets.end());
-  stiffness_.makeCompressed();
+  stiffness_ = assemble_stiffness(mesh, tet_materials);
   inverse_diagonal_ = stiffness_.diagonal().cwiseInverse();
 
   u_ = Eigen::VectorXd::Zero(3 * n);

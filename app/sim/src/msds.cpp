@@ -6,6 +6,8 @@
 #include <string>
 #include <tuple>
 
+#include "model_checks.hpp"
+
 namespace ultrasim::sim {
 
 // Stability of the explicit step (forward_euler_stable_time_step_s, msds_max_omega_squared_bound).
@@ -58,13 +60,6 @@ bool positive_finite(double value) {
   return value > 0.0 && std::isfinite(value);
 }
 
-void check_material(const Material& m) {
-  require(positive_finite(m.youngs_modulus_kpa),
-          "material '" + m.name + "': youngs_modulus_kpa must be > 0");
-  require(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5,
-          "material '" + m.name + "': poisson_ratio must be in [0, 0.5)");
-}
-
 void check_settings(const MsdsSettings& s) {
   require(positive_finite(s.stiffness_per_modulus_mm), "stiffness_per_modulus_mm must be > 0");
   require(s.damping_per_stiffness_s >= 0.0 && std::isfinite(s.damping_per_stiffness_s),
@@ -77,31 +72,6 @@ void check_settings(const MsdsSettings& s) {
           "max_inverted_fraction must be in [0, 1]");
   require(s.implicit_steps_per_frame >= 1 && s.implicit_steps_per_frame <= kMaxStepsPerFrame,
           "implicit_steps_per_frame must be in [1, " + std::to_string(kMaxStepsPerFrame) + "]");
-}
-
-void check_mesh(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
-                std::span<const std::uint8_t> fixed_nodes) {
-  const int n = mesh.node_count();
-  require(tet_materials.size() == mesh.tets.size(),
-          "need one material per tet (" + std::to_string(tet_materials.size()) + " for " +
-              std::to_string(mesh.tets.size()) + " tets)");
-  require(fixed_nodes.size() == static_cast<std::size_t>(n),
-          "need one fixed flag per node (" + std::to_string(fixed_nodes.size()) + " for " +
-              std::to_string(n) + " nodes)");
-  require(std::any_of(fixed_nodes.begin(), fixed_nodes.end(), [](auto f) { return f != 0; }),
-          "no node is fixed: the springs' stiffness is singular (the tissue could float away); "
-          "fix a face or a label in the case's [mesh] table");
-  const auto& p = mesh.rest_positions_mm;
-  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
-    const auto& tet = mesh.tets[t];
-    for (auto node : tet) {
-      require(node >= 0 && node < n, "tet " + std::to_string(t) + " references node " +
-                                         std::to_string(node) + " outside the mesh");
-    }
-    require(geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]) > 0.0,
-            "tet " + std::to_string(t) + " has no positive volume");
-    check_material(tet_materials[t]);
-  }
 }
 
 }  // namespace
@@ -181,7 +151,7 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
                        hal::JobSystem* jobs)
     : integrator_(integrator), settings_(settings), jobs_(jobs) {
   check_settings(settings);
-  check_mesh(mesh, tet_materials, fixed_nodes);
+  check_tet_model("MsdsEngine", mesh, tet_materials, fixed_nodes);
   rest_ = mesh.rest_positions_mm;
   tets_ = mesh.tets;
   build_springs(mesh, tet_materials);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "direct_solve.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
 
@@ -37,43 +38,6 @@ ProbeCollider flat_probe(double x_mm, double depth_mm, double tilt_rad = 0.0) {
   const Eigen::Quaterniond orientation(Eigen::AngleAxisd(tilt_rad, Eigen::Vector3d::UnitY()));
   return ProbeCollider::linear_face(Eigen::Vector3d(x_mm, 0.3, depth_mm), orientation, 24.0, 8.0,
                                     2.0);
-}
-
-// Reference: eliminate the given DOF values (and fixed nodes), factor the rest afresh, solve.
-Eigen::VectorXd direct_solve_with_known_dofs(const ExactFem& fem,
-                                             const std::vector<std::uint8_t>& fixed,
-                                             const std::vector<std::pair<int, double>>& known) {
-  const auto& k = fem.stiffness();
-  const int dofs = static_cast<int>(k.rows());
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(dofs);
-  std::vector<std::uint8_t> is_known(dofs, 0);
-  for (int n = 0; n < fem.node_count(); ++n)
-    if (fixed[n]) is_known[3 * n] = is_known[3 * n + 1] = is_known[3 * n + 2] = 1;
-  for (const auto& [dof, value] : known) {
-    u[dof] = value;
-    is_known[dof] = 1;
-  }
-  std::vector<int> index(dofs, -1);
-  int count = 0;
-  for (int d = 0; d < dofs; ++d)
-    if (!is_known[d]) index[d] = count++;
-  const Eigen::VectorXd rhs_full = -(k * u);
-  Eigen::VectorXd rhs(count);
-  std::vector<Eigen::Triplet<double>> triplets;
-  for (int r = 0; r < dofs; ++r) {
-    if (index[r] < 0) continue;
-    rhs[index[r]] = rhs_full[r];
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(k, r); it; ++it)
-      if (index[it.col()] >= 0) triplets.emplace_back(index[r], index[it.col()], it.value());
-  }
-  Eigen::SparseMatrix<double> kr(count, count);
-  kr.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(kr);
-  EXPECT_EQ(ldlt.info(), Eigen::Success);
-  const Eigen::VectorXd ur = ldlt.solve(rhs);
-  for (int d = 0; d < dofs; ++d)
-    if (index[d] >= 0) u[d] = ur[index[d]];
-  return u;
 }
 
 double relative_max_error(const Eigen::VectorXd& got, const Eigen::VectorXd& want) {
@@ -152,7 +116,8 @@ TEST(ExactFemContact, FrictionlessFlatProbeEqualsDirectSolveWithTheContactDepths
       EXPECT_LT(fem.reaction_force_mn(n).norm(), rounding_mn) << "node " << n;
     }
   }
-  const Eigen::VectorXd want = direct_solve_with_known_dofs(fem, b.fixed, known);
+  const Eigen::VectorXd want = testing::direct_solve_with_known_dofs(
+      fem.stiffness(), b.fixed, known, Eigen::VectorXd::Zero(3 * b.mesh.node_count()));
   EXPECT_LT(relative_max_error(fem.displacements_mm(), want), 1e-6);
   // The force the probe exerts equals the support's reaction on the fixed face.
   Eigen::Vector3d support = Eigen::Vector3d::Zero();

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "block_fixture.hpp"
+#include "direct_solve.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
@@ -27,38 +28,12 @@ Block make_block(Eigen::Vector3i nodes = {9, 5, 5}) {
 Eigen::VectorXd direct_reduced_solve(const ExactFem& fem, const std::vector<std::uint8_t>& fixed,
                                      std::span<const PrescribedNode> held,
                                      const Eigen::VectorXd& load_mn) {
-  const auto& k = fem.stiffness();
-  const int dofs = static_cast<int>(k.rows());
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(dofs);
-  std::vector<std::uint8_t> known(dofs, 0);
-  for (int n = 0; n < fem.node_count(); ++n)
-    if (fixed[n]) known[3 * n] = known[3 * n + 1] = known[3 * n + 2] = 1;
+  std::vector<std::pair<int, double>> known;
   for (const auto& h : held) {
     if (fixed[h.node]) continue;
-    u.segment<3>(3 * h.node) = h.displacement_mm;
-    known[3 * h.node] = known[3 * h.node + 1] = known[3 * h.node + 2] = 1;
+    for (int i = 0; i < 3; ++i) known.emplace_back(3 * h.node + i, h.displacement_mm[i]);
   }
-  std::vector<int> index(dofs, -1);
-  int count = 0;
-  for (int d = 0; d < dofs; ++d)
-    if (!known[d]) index[d] = count++;
-  const Eigen::VectorXd rhs_full = load_mn - k * u;
-  Eigen::VectorXd rhs(count);
-  std::vector<Eigen::Triplet<double>> triplets;
-  for (int r = 0; r < dofs; ++r) {
-    if (index[r] < 0) continue;
-    rhs[index[r]] = rhs_full[r];
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(k, r); it; ++it)
-      if (index[it.col()] >= 0) triplets.emplace_back(index[r], index[it.col()], it.value());
-  }
-  Eigen::SparseMatrix<double> kr(count, count);
-  kr.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(kr);
-  EXPECT_EQ(ldlt.info(), Eigen::Success);
-  const Eigen::VectorXd ur = ldlt.solve(rhs);
-  for (int d = 0; d < dofs; ++d)
-    if (index[d] >= 0) u[d] = ur[index[d]];
-  return u;
+  return testing::direct_solve_with_known_dofs(fem.stiffness(), fixed, known, load_mn);
 }
 
 double relative_max_error(const Eigen::VectorXd& got, const Eigen::VectorXd& want) {

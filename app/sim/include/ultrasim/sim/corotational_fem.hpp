@@ -121,8 +121,7 @@ class CorotationalFem final : public DeformationEngine {
 
  private:
   // Setup (allocates).
-  void validate_and_precompute_tets(const geometry::TetMesh& mesh,
-                                    std::span<const Material> tet_materials);
+  void precompute_tets(std::span<const Material> tet_materials);
   // Throws std::logic_error when tet t's gradient-form stiffness is not tet_stiffness().
   void check_against_linear_fem(int t, const Material& m) const;
   void build_pattern_and_scatter_map();

@@ -103,6 +103,11 @@ class LinearFem final : public DeformationEngine {
   std::vector<Eigen::Vector3d> deformed_;
 };
 
+// The global stiffness (3·nodes square, node-major x,y,z; kPa·mm, so K u is in mN) of linear tets
+// with one isotropic material each. Inputs as checked by the engines' constructors. Allocates.
+Eigen::SparseMatrix<double, Eigen::RowMajor> assemble_stiffness(
+    const geometry::TetMesh& mesh, std::span<const Material> tet_materials);
+
 // Element stiffness of a linear tet (12×12, node-major x,y,z) for an isotropic material.
 // Exposed for tests against hand-derived values.
 Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
