@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Charts for docs/: the deformation methods' speed against accuracy, and the compression study.
 
-  python3 scripts/plot_engines.py --bench engines.csv --compression exact.csv pcg.csv \
-      --out docs/images
+  python3 scripts/plot_engines.py --bench engines.csv --budget budget.csv \
+      --compression exact.csv pcg.csv --out docs/images
 
 engines.csv: build/ci/tests/bench/engine_bench --benchmark_out=engines.csv
---benchmark_out_format=csv. Compression CSVs: ultrasim-kiosk --compression-study FILE --method M.
+--benchmark_out_format=csv; budget.csv: the same from engine_budget_bench (error against time
+as each method's per-frame budget grows). Compression CSVs: ultrasim-kiosk --compression-study
+FILE --method M.
 Needs python3-matplotlib (Debian); nothing in the build or the tests uses this script.
 """
 
@@ -71,6 +73,61 @@ def pareto(rows, out_dir):
     fig.savefig(out_dir / "engines-pareto.png", dpi=110)
 
 
+# engine_budget_bench's methods: name, what the budget counts, reference, and where the budget
+# labels go (points): the two MSDS lines run side by side, so one is labelled above, one below.
+BUDGET_METHODS = {
+    "pcg": ("(a) PCG FEM", "PCG it.", "converged PCG FEM", (3, 3)),
+    "msds-explicit": ("(b) MSDS explicit, 5 ms steps", "steps", "converged PCG FEM", (0, 5)),
+    "corotational": ("(d) corotational FEM", "PCG it.", "converged corotational", (3, 3)),
+    "msds-implicit": ("(e) MSDS implicit, 0.1 s a frame", "steps", "converged PCG FEM",
+                      (0, -11)),
+}
+ERROR_FLOOR = 1e-7  # a converged point's error (0) is drawn here on the log axis
+
+
+def budget_panel(ax, rows, column, ylabel):
+    """One line per method: error in `column` against ms per frame, points labelled by budget."""
+    for method, (name, unit, reference, label_offset) in BUDGET_METHODS.items():
+        pts = sorted((r for r in rows if r["label"] == method and r["threads"] == 1),
+                     key=lambda r: r["budget"])
+        if not pts:
+            continue
+        xs = [float(r["real_time"]) for r in pts]
+        ys = [max(float(r[column]), ERROR_FLOOR) for r in pts]
+        line, = ax.plot(xs, ys, "o-", ms=4, label="%s (%s) vs %s" % (name, unit, reference))
+        for r, x, y in zip(pts, xs, ys):
+            ax.annotate(str(r["budget"]), (x, y), textcoords="offset points",
+                        xytext=label_offset, ha="center" if label_offset[0] == 0 else "left",
+                        fontsize=7, color=line.get_color())
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    bottom, top = ax.get_ylim()
+    ax.set_ylim(bottom, top * 2.5)  # room for the labels above the top line
+    ax.set_xlabel("ms per frame (1 thread)")
+    ax.set_ylabel(ylabel)
+    ax.axvline(16.7, color="grey", lw=0.8, ls=":")
+    ax.text(16.7, 0.02, " 60 Hz frame", transform=ax.get_xaxis_transform(), fontsize=8,
+            color="grey")
+    ax.grid(True, which="both", alpha=0.2)
+
+
+def budget(rows, out_dir):
+    """Error against ms per frame as each method's budget grows: max norm and 2-norm side by side."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharex=True)
+    budget_panel(axes[0], rows, "error", "displacement error, max norm (relative)")
+    budget_panel(axes[1], rows, "error_l2", "displacement error, 2-norm over the field (relative)")
+    axes[0].set_title("one node's error: jumps where a contact decision differs", fontsize=9)
+    axes[1].set_title("the whole field's", fontsize=9)
+    fig.suptitle("Error after 60 frames (press, slide) against time per frame as the budget "
+                 "grows; 32×16×16 nodes; points labelled by PCG iterations or steps per frame",
+                 fontsize=10)
+    # Below the axes: the lines run through every corner of the plots.
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=2)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
+    fig.savefig(out_dir / "engines-budget.png", dpi=110)
+
+
 def compression(paths, out_dir):
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for path in paths:
@@ -100,6 +157,7 @@ def compression(paths, out_dir):
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--bench", help="engine_bench CSV")
+    parser.add_argument("--budget", help="engine_budget_bench CSV")
     parser.add_argument("--compression", nargs="*", default=[], help="compression study CSVs")
     parser.add_argument("--out", default="docs/images")
     args = parser.parse_args()
@@ -107,6 +165,8 @@ def main():
     out_dir.mkdir(parents=True, exist_ok=True)
     if args.bench:
         pareto(read_bench(args.bench), out_dir)
+    if args.budget:
+        budget(read_bench(args.budget), out_dir)
     if args.compression:
         compression(args.compression, out_dir)
 

@@ -95,11 +95,13 @@ TableSchema<sim::SimSettings> sim_schema() {
                                        {"pcg", sim::EngineKind::kPcgFem},
                                        {"corotational", sim::EngineKind::kCorotationalFem},
                                        {"msds-explicit", sim::EngineKind::kMsdsExplicit},
-                                       {"msds-implicit", sim::EngineKind::kMsdsImplicit}}},
+                                       {"msds-implicit", sim::EngineKind::kMsdsImplicit},
+                                       {"hyperelastic", sim::EngineKind::kHyperelasticFem}}},
               "Deformation method: exact = linear FEM solved exactly; pcg = the published "
               "linear FEM (fixed PCG budget); corotational = FEM with per-tet rotations; "
               "msds-explicit = the published mass-spring system; msds-implicit = the same, "
-              "implicit Euler."));
+              "implicit Euler; hyperelastic = large-strain FEM, the reference (seconds a "
+              "frame)."));
   return t;
 }
 
@@ -156,6 +158,27 @@ TableSchema<sim::CorotationalSettings> corotational_schema() {
   t.add(field("relative_tolerance", &S::relative_tolerance, RealIn::open(0.0, 1.0),
               "Stop early when the residual norm falls below this fraction of the right-hand "
               "side norm."));
+  t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
+              "Above this fraction of inverted tets a frame is cut short along its update (a "
+              "few folded under the probe's rim are accepted)."));
+  return t;
+}
+
+TableSchema<sim::HyperelasticSettings> hyperelastic_schema() {
+  using S = sim::HyperelasticSettings;
+  TableSchema<S> t;
+  t.add(field("newton_iterations_per_frame", &S::newton_iterations_per_frame,
+              IntegerIn<int>{1, 10'000},
+              "Newton iterations per solve (each contact round and the last), warm-started."));
+  t.add(field("relative_force_tolerance", &S::relative_force_tolerance, RealIn::open(0.0, 1.0),
+              "Converged when every free node's out-of-balance force is below this fraction of "
+              "the largest held or contact force."));
+  t.add(field("step_tolerance_mm", &S::step_tolerance_mm, RealIn::open(0.0, 1.0),
+              "... or when a full Newton step moves no node further than this, mm."));
+  t.add(field("max_contact_rounds", &S::max_contact_rounds, IntegerIn<int>{1, 100},
+              "Augmented-Lagrangian rounds per frame for the probe's contact."));
+  t.add(field("contact_tolerance_mm", &S::contact_tolerance_mm, RealIn::open(0.0, 1.0),
+              "The rounds stop when no node is further inside the probe than this, mm."));
   return t;
 }
 
@@ -186,6 +209,8 @@ const DocumentSchema<AppSettings>& app_schema() {
             "Quasi-static linear FEM solved exactly (method exact).");
     d.table("corotational", &AppSettings::corotational, corotational_schema(),
             "Corotational linear FEM (method corotational).");
+    d.table("hyperelastic", &AppSettings::hyperelastic, hyperelastic_schema(),
+            "Large-strain hyperelastic FEM (method hyperelastic).");
     d.table("msds", &AppSettings::msds, msds_schema(),
             "Mass-spring-damper system (methods msds-explicit and msds-implicit).");
     d.table("collider", &AppSettings::collider, collider_schema(),

@@ -89,6 +89,9 @@ TableSchema<sim::Material> material_schema() {
               "Young's modulus E in kPa (fat ~1, tendon ~1e6).", Presence::kRequired));
   t.add(field("poisson_ratio", &S::poisson_ratio, RealIn::closed_open(0.0, 0.5),
               "Poisson's ratio; near 0.5 is near-incompressible."));
+  t.add(field("stiffening", &S::stiffening, RealIn::closed(0.0, 50.0),
+              "How fast the tissue stiffens as it is squeezed (hyperelastic FEM only; 0 = "
+              "neo-Hookean)."));
   return t;
 }
 

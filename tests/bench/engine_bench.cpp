@@ -7,53 +7,18 @@
 
 #include <benchmark/benchmark.h>
 
-#include <map>
-#include <memory>
+#include <string>
 
+#include "engine_scene.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
-#include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
 namespace {
 
 using namespace ultrasim;
-
-struct Block {
-  geometry::TetMesh mesh;
-  std::vector<sim::Material> materials;
-  std::vector<std::uint8_t> fixed, skin;
-};
-
-// The default case's region, 60 × 40 × 45 mm, fixed at depth 45: fat over muscle.
-const Block& block(int nx, int ny, int nz) {
-  static std::map<long, Block> blocks;
-  Block& b = blocks[(nx * 1000L + ny) * 1000L + nz];
-  if (!b.mesh.tets.empty()) return b;
-  b.mesh = geometry::make_grid_tet_mesh(
-      geometry::GridSpec::spanning({-30, -20, 0}, {30, 20, 45}, {nx, ny, nz}));
-  const auto& p = b.mesh.rest_positions_mm;
-  for (const auto& t : b.mesh.tets) {
-    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
-    b.materials.push_back(z < 15 ? sim::Material{2, "fat", 20.0, 0.45}
-                                 : sim::Material{3, "muscle", 50.0, 0.45});
-  }
-  b.fixed.assign(p.size(), 0);
-  b.skin.assign(p.size(), 0);
-  for (std::size_t n = 0; n < p.size(); ++n) {
-    b.fixed[n] = p[n].z() == 45.0;
-    b.skin[n] = p[n].z() == 0.0;
-  }
-  return b;
-}
-
-sim::ProbeCollider probe_at(int frame) {
-  // 4 mm deep after a 20-frame press, then sliding ±5 mm at 0.5 mm a frame.
-  const double depth = std::min(4.0, 0.2 * frame);
-  const int phase = std::max(0, frame - 20) % 40;
-  const double x = phase < 20 ? -5.0 + 0.5 * phase : 5.0 - 0.5 * (phase - 20);
-  return sim::ProbeCollider::linear_face(Eigen::Vector3d(x, 0.3, depth),
-                                         Eigen::Quaterniond::Identity(), 38.0, 10.0, 2.0);
-}
+using bench::Block;
+using bench::block;
+using bench::probe_at;
 
 void BM_Engine(benchmark::State& state) {
   const auto kind = static_cast<sim::EngineKind>(state.range(0));
@@ -65,21 +30,20 @@ void BM_Engine(benchmark::State& state) {
   auto engine = sim::make_engine(kind, b.mesh, b.materials, b.fixed, settings, b.skin, &jobs);
   auto reference = sim::make_engine(sim::EngineKind::kExactFem, b.mesh, b.materials, b.fixed,
                                     settings, b.skin, &jobs);
-  // Accuracy first, untimed: the same 60 frames for both.
+  // Accuracy first, untimed: the same frames for both.
   sim::EngineStepStats stats;
-  for (int frame = 0; frame < 60; ++frame) {
+  for (int frame = 0; frame < bench::kAccuracyFrames; ++frame) {
     const auto probe = probe_at(frame);
-    stats = engine->step(&probe, 1.0 / 60.0);
-    reference->step(&probe, 1.0 / 60.0);
+    stats = engine->step(&probe, bench::kFrameDtS);
+    reference->step(&probe, bench::kFrameDtS);
   }
-  const Eigen::VectorXd& want = reference->displacements_mm();
-  const double error = (engine->displacements_mm() - want).lpNorm<Eigen::Infinity>() /
-                       want.lpNorm<Eigen::Infinity>();
-  int frame = 60;
+  const double error =
+      bench::relative_max_error(engine->displacements_mm(), reference->displacements_mm());
+  int frame = bench::kAccuracyFrames;
   std::int64_t diverged = 0, frames = 0;
   for (auto _ : state) {
     const auto probe = probe_at(frame++);
-    const auto s = engine->step(&probe, 1.0 / 60.0);
+    const auto s = engine->step(&probe, bench::kFrameDtS);
     diverged += s.diverged;
     ++frames;
   }

@@ -189,12 +189,12 @@ TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {
   RecordProperty("artery_pressed_mm2", std::to_string(artery_pressed));
   std::cout << "vein lumen " << vein_rest << " -> " << vein_pressed << " -> " << vein_released
             << " mm2; artery lumen " << artery_rest << " -> " << artery_pressed << " mm2\n";
-  EXPECT_GT(vein_rest, 40.0) << "the vein's lumen is visible at rest";
+  EXPECT_GT(vein_rest, 8.0) << "the vein's lumen is visible at rest";
   EXPECT_GT(artery_rest, 15.0) << "the artery's lumen is visible at rest";
   // Measured on the default case with the exact FEM and the transducer face: the vein's dark
-  // area falls 55 -> 21 mm² at 8 mm, the artery's 31 -> 30. Linear FEM treats the lumen as a soft
-  // solid, so the vein narrows but does not buckle shut (docs/accuracy.md).
-  EXPECT_LT(vein_pressed, 0.5 * vein_rest) << "the vein narrows under the probe";
+  // area falls 12.7 -> 0 mm² at 8 mm (its lumen keeps ~20 % of its labelled area, too thin to
+  // show dark: docs/accuracy.md), the artery's 31 -> 30.
+  EXPECT_LT(vein_pressed, 0.1 * vein_rest) << "the vein collapses under the probe";
   EXPECT_GT(artery_pressed, 0.9 * artery_rest) << "the artery keeps its lumen";
   EXPECT_GT(vein_released, 0.8 * vein_rest) << "the vein reopens when the pressure is released";
 }

@@ -74,6 +74,7 @@ CompressionStudy run_compression_study(const TissueCase& tissue,
     s.inverted_tets = outcome.sim.inverted_tets;
     s.diverged = outcome.sim.diverged;
     study.samples.push_back(s);
+    if (options.on_sample) options.on_sample(s);
   }
 
   const CompressionSample& rest = study.samples.front();

@@ -38,12 +38,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::string study_csv, study_method = "exact";
   int study_frames = 1;
+  double study_step_mm = 0.25, study_depth_mm = 15.0;
   app.add_option("--compression-study", study_csv,
                  "press over the case's vein and artery and write force and lumen areas to this "
                  "CSV (headless)");
   app.add_option("--method", study_method,
                  "deformation method for --compression-study: exact, pcg, corotational, "
-                 "msds-explicit, msds-implicit")
+                 "msds-explicit, msds-implicit, hyperelastic")
+      ->capture_default_str();
+  app.add_option("--study-step-mm", study_step_mm, "press step of --compression-study, mm")
+      ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  app.add_option("--study-depth-mm", study_depth_mm, "deepest press of --compression-study, mm")
+      ->check(CLI::Range(0.1, 100.0))
       ->capture_default_str();
   app.add_option("--frames-per-step", study_frames,
                  "frames simulated at each depth of --compression-study")
@@ -62,6 +69,12 @@ int main(int argc, char** argv) {
       ultrasim::kiosk::CompressionStudyOptions study_options;
       study_options.method = *method;
       study_options.frames_per_step = study_frames;
+      study_options.step_mm = study_step_mm;
+      study_options.max_depth_mm = study_depth_mm;
+      study_options.on_sample = [](const ultrasim::kiosk::CompressionSample& s) {
+        std::cerr << "  depth " << s.depth_mm << " mm: force " << s.force_n << " N, vein "
+                  << s.vein_area_mm2 << " mm², artery " << s.artery_area_mm2 << " mm²\n";
+      };
       const auto study =
           ultrasim::kiosk::run_compression_study(tissue, settings, study_options, jobs);
       ultrasim::kiosk::write_compression_csv(study_csv, study);

@@ -135,6 +135,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (!(settings.relative_tolerance >= 0.0) || !std::isfinite(settings.relative_tolerance)) {
     throw std::invalid_argument("relative_tolerance must be finite and >= 0");
   }
+  if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
+    throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
+  }
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
 
@@ -599,16 +602,25 @@ double CorotationalFem::measure_contact_forces() {
   return total_mn.norm() / 1000.0;
 }
 
+int CorotationalFem::inversion_limit() const {
+  // The same tolerance as the other engines (`inverted > fraction × tets` fails a frame).
+  return static_cast<int>(
+      std::floor(settings_.max_inverted_fraction * static_cast<double>(tet_count())));
+}
+
 void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
   const bool finite = u_.allFinite();
   const InversionCount inverted = finite ? count_inverted(u_) : InversionCount{};
   stats.inverted_tets = inverted.total;
   // Tets whose four nodes are all held (pressed flat between probe contacts) are the
   // constraints' doing, which no solve or retry changes: only the others count against a frame.
-  if (finite && inverted.with_free_node == 0) return;
-  // A frame may not fold more tets than the shape it started from had (a shape handed over by
-  // another engine may come folded; the solve then unfolds it over the next frames).
-  const int allowed = count_inverted(u_before_step_).with_free_node;
+  // A few of those are the linear element's weakness under the probe's rounded rim, not a
+  // failed frame: refusing every such frame made the tissue lag a sliding probe on most frames.
+  if (finite && inverted.with_free_node <= inversion_limit()) return;
+  // A shape that starts over the limit (handed over folded by another engine) may keep its folds
+  // while the frames unfold it, but not add to them: without this allowance every frame would
+  // be thrown away and the shape would stay folded for good.
+  const int allowed = std::max(inversion_limit(), count_inverted(u_before_step_).with_free_node);
   if (finite && inverted.with_free_node <= allowed) return;
   stats.diverged = true;
   stats.recovery = Recovery::kSubstepped;
@@ -691,7 +703,7 @@ CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_m
   } else {
     const InversionCount inverted = count_inverted(u_);
     stats.inverted_tets = inverted.total;
-    stats.diverged = inverted.with_free_node > 0;
+    stats.diverged = inverted.with_free_node > inversion_limit();  // as step() would judge it
     stats.contact_force_n = measure_contact_forces();
   }
   update_deformed();

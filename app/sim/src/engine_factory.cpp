@@ -6,6 +6,7 @@
 
 #include "ultrasim/sim/corotational_fem.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
+#include "ultrasim/sim/hyperelastic_fem.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
 
@@ -13,12 +14,13 @@ namespace ultrasim::sim {
 
 namespace {
 
-constexpr std::array<std::pair<EngineKind, std::string_view>, 5> kKeys = {{
+constexpr std::array<std::pair<EngineKind, std::string_view>, 6> kKeys = {{
     {EngineKind::kPcgFem, "pcg"},
     {EngineKind::kMsdsExplicit, "msds-explicit"},
     {EngineKind::kExactFem, "exact"},
     {EngineKind::kCorotationalFem, "corotational"},
     {EngineKind::kMsdsImplicit, "msds-implicit"},
+    {EngineKind::kHyperelasticFem, "hyperelastic"},
 }};
 
 }  // namespace
@@ -44,6 +46,9 @@ std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::
     case EngineKind::kMsdsImplicit:
       return std::make_unique<MsdsEngine>(MsdsIntegrator::kImplicitEuler, mesh, tet_materials,
                                           fixed_nodes, settings.msds, jobs);
+    case EngineKind::kHyperelasticFem:
+      return std::make_unique<HyperelasticFem>(mesh, tet_materials, fixed_nodes,
+                                               settings.hyperelastic, jobs);
   }
   throw std::invalid_argument("make_engine: unknown method");
 }

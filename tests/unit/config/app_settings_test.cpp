@@ -33,6 +33,9 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.bscan.background_grey, b.bscan.background_grey);
   EXPECT_EQ(a.fem.pcg_iterations_per_frame, b.fem.pcg_iterations_per_frame);
   EXPECT_EQ(a.fem.relative_tolerance, b.fem.relative_tolerance);
+  EXPECT_EQ(a.corotational.pcg_iterations_per_frame, b.corotational.pcg_iterations_per_frame);
+  EXPECT_EQ(a.corotational.relative_tolerance, b.corotational.relative_tolerance);
+  EXPECT_EQ(a.corotational.max_inverted_fraction, b.corotational.max_inverted_fraction);
   EXPECT_EQ(a.collider.radius_mm, b.collider.radius_mm);
   EXPECT_EQ(a.frame.budget_us, b.frame.budget_us);
 }
@@ -86,6 +89,8 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.bscan.background_grey = 17;
   changed.fem.pcg_iterations_per_frame = 77;
   changed.fem.relative_tolerance = 0.1 + 0.2;  // not exactly representable in short decimal
+  changed.corotational.pcg_iterations_per_frame = 33;
+  changed.corotational.max_inverted_fraction = 0.0125;
   changed.collider.radius_mm = 12.5;
   changed.frame.budget_us = 33'333;
   expect_same(parse_app_settings(format_app_toml(changed), "formatted.toml"), changed);
@@ -105,6 +110,8 @@ background_grey = 5
 [fem]
 pcg_iterations_per_frame = 40
 relative_tolerance = 1e-6
+[corotational]
+max_inverted_fraction = 0.02
 [collider]
 radius_mm = 500
 [frame]
@@ -120,6 +127,7 @@ budget_us = 8333
   EXPECT_EQ(s.bscan.background_grey, 5);
   EXPECT_EQ(s.fem.pcg_iterations_per_frame, 40);
   EXPECT_EQ(s.fem.relative_tolerance, 1e-6);
+  EXPECT_EQ(s.corotational.max_inverted_fraction, 0.02);
   EXPECT_EQ(s.collider.radius_mm, 500.0);  // closed upper bound
   EXPECT_EQ(s.frame.budget_us, 8333);
 }
@@ -148,7 +156,8 @@ TEST(AppSettings, UnknownTableIsAnError) {
   EXPECT_THAT(caught.message, HasSubstr("did you mean \"collider\"?"));
   EXPECT_THAT(
       caught.message,
-      HasSubstr("allowed: display, bscan, sim, fem, exact, corotational, msds, collider, frame"));
+      HasSubstr("allowed: display, bscan, sim, fem, exact, corotational, hyperelastic, msds, "
+                "collider, frame"));
 }
 
 TEST(AppSettings, FarOffUnknownKeyGetsNoSuggestion) {

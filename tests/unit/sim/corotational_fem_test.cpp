@@ -6,10 +6,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "block_fixture.hpp"
@@ -80,6 +82,12 @@ TEST(CorotationalFem, RejectsMismatchedInputsBadTetsNonPhysicalMaterialsAndAZero
   std::vector<std::uint8_t> short_fixed(b.fixed.begin(), b.fixed.end() - 1);
   EXPECT_THROW(CorotationalFem(b.mesh, b.materials, short_fixed, ok), std::invalid_argument);
   EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, budget(0)), std::invalid_argument);
+  for (double fraction : {-0.01, 1.5, std::nan("")}) {
+    CorotationalSettings bad_fraction;
+    bad_fraction.max_inverted_fraction = fraction;
+    EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_fraction), std::invalid_argument)
+        << fraction;
+  }
   auto bad = b.materials;
   bad[3].poisson_ratio = 0.5;
   EXPECT_THROW(CorotationalFem(b.mesh, bad, b.fixed, ok), std::invalid_argument);
@@ -385,21 +393,82 @@ TEST(CorotationalFem, ParallelStepsEqualSerialStepsBitwise) {
   EXPECT_TRUE(serial.displacements_mm() == parallel.displacements_mm());
 }
 
-// A node held far through its neighbours would fold tets over: the frame is cut short (the
-// tissue lags) instead, the inversion is reported, and nothing non-finite appears.
-TEST(CorotationalFem, InvertingFrameIsBacktrackedReportedAndLeavesNoNaN) {
+CorotationalSettings inversion_limit(double max_inverted_fraction) {
+  CorotationalSettings s = budget(20);
+  s.max_inverted_fraction = max_inverted_fraction;
+  return s;
+}
+
+// The benchmark's linear face (narrower, for the test block) pressed 4 mm over 20 frames, then
+// sliding ±5 mm at 0.5 mm a frame.
+ProbeCollider sliding_face(int frame) {
+  const double depth = std::min(4.0, 0.2 * frame);
+  const int phase = std::max(0, frame - 20) % 40;
+  const double x = phase < 20 ? -5.0 + 0.5 * phase : 5.0 - 0.5 * (phase - 20);
+  return ProbeCollider::linear_face({x, 0.3, depth}, Eigen::Quaterniond::Identity(), 20.0, 10.0,
+                                    2.0);
+}
+
+// The face's rounded rim folds a few tets as it slides. Within max_inverted_fraction (the other
+// engines' tolerance) those frames are accepted whole and report their inverted tets; with no
+// tolerance some of them are cut short, and the tissue lags the probe.
+TEST(CorotationalFem, RimInversionsWithinTheFractionAreAcceptedAndReported) {
   Block b = make_block();
-  CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  const CorotationalSettings defaults = budget(20);
+  ASSERT_EQ(defaults.max_inverted_fraction, 0.005);
+  const int limit = static_cast<int>(0.005 * b.mesh.tet_count());
+  ASSERT_GE(limit, 2) << "the block must allow a few";
+  const auto slide = [&](const CorotationalSettings& settings) {
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+    int diverged = 0, folded = 0;
+    for (int frame = 0; frame < 60; ++frame) {
+      const ProbeCollider probe = sliding_face(frame);
+      const auto stats = fem.step(&probe, 1.0 / 30);
+      diverged += stats.diverged;
+      folded += stats.inverted_tets > 0;
+      EXPECT_LE(stats.inverted_tets, limit) << "frame " << frame;
+      EXPECT_TRUE(fem.displacements_mm().allFinite()) << "frame " << frame;
+    }
+    return std::pair{diverged, folded};
+  };
+  const auto [diverged, folded] = slide(defaults);
+  EXPECT_GT(folded, 5) << "frames with a few rim inversions";
+  EXPECT_EQ(diverged, 0);
+  EXPECT_GT(slide(inversion_limit(0.0)).first, 0) << "no tolerance: some frames are cut short";
+}
+
+// A node held far through its neighbours folds a few tets over. Up to the limit the frame is
+// accepted whole; one fold over it, the frame is cut short (the tissue lags) to a shape within
+// the limit, the inversion is reported, and nothing non-finite appears.
+TEST(CorotationalFem, InvertingFrameOverTheLimitIsBacktrackedReportedAndLeavesNoNaN) {
+  Block b = make_block();
   const int skin_centre = node_at(b.mesh, {0, 0, 0});
   ASSERT_GE(skin_centre, 0);
-  fem.prescribe_displacement(skin_centre, {0, 0, 14.0});  // the node below sits at z = 5
-  const auto stats = fem.step(nullptr, 1.0 / 30);
-  EXPECT_GT(stats.inverted_tets, 0);
+  const auto press_through = [&](double max_inverted_fraction) {
+    auto fem = std::make_unique<CorotationalFem>(b.mesh, b.materials, b.fixed,
+                                                 inversion_limit(max_inverted_fraction));
+    fem->prescribe_displacement(skin_centre, {0, 0, 14.0});  // the node below sits at z = 5
+    const auto stats = fem->step(nullptr, 1.0 / 30);
+    return std::pair{std::move(fem), stats};
+  };
+  const auto [whole, accepted] = press_through(1.0);
+  const int folds = accepted.inverted_tets;
+  ASSERT_GT(folds, 0);
+  EXPECT_FALSE(accepted.diverged);
+  EXPECT_EQ(whole->displacements_mm()[3 * skin_centre + 2], 14.0);
+
+  const double tets = b.mesh.tet_count();
+  const auto [at_limit, at_limit_stats] = press_through(folds / tets);
+  EXPECT_FALSE(at_limit_stats.diverged) << "exactly at the limit";
+  EXPECT_TRUE(at_limit->displacements_mm() == whole->displacements_mm());
+
+  const auto [cut, stats] = press_through((folds - 0.5) / tets);  // a limit of folds − 1
+  EXPECT_EQ(stats.inverted_tets, folds) << "the rejected result's inversions are reported";
   EXPECT_TRUE(stats.diverged);
   EXPECT_EQ(stats.recovery, Recovery::kSubstepped);
-  EXPECT_TRUE(fem.displacements_mm().allFinite());
-  EXPECT_EQ(fem.inverted_tet_count(), 0);
-  const double reached = fem.displacements_mm()[3 * skin_centre + 2];
+  EXPECT_TRUE(cut->displacements_mm().allFinite());
+  EXPECT_LE(cut->inverted_tet_count(), folds - 1);
+  const double reached = cut->displacements_mm()[3 * skin_centre + 2];
   EXPECT_GT(reached, 0.0);
   EXPECT_LT(reached, 14.0);
 }

@@ -98,15 +98,15 @@ TEST_F(DefaultCase, LabelsAtTheDocumentedPlaces) {
   EXPECT_EQ(label(0, 0, 1), kSkin);
   EXPECT_EQ(label(0, 0, 5), kFat);
   EXPECT_EQ(label(-20, 0, 25), kMuscle);
-  EXPECT_EQ(label(-8, 0, 15), kVein);
+  EXPECT_EQ(label(-8, 0, 11), kVein);
   EXPECT_EQ(label(6, 0, 19), kArtery);
   EXPECT_EQ(label(15, 0, 13), kNerve);
   EXPECT_EQ(label(1, 0, 40), kBone);
-  // Sizes: vein 6.5 × 4 mm semi-axes, artery lumen 3.5 + wall 1.2, nerve r 2.5, bone top 34.
-  EXPECT_EQ(label(-8 + 6.0, 0, 15), kVein);
-  EXPECT_EQ(label(-8 + 7.0, 0, 15), kMuscle);
-  EXPECT_EQ(label(-8, 0, 15 + 3.5), kVein);
-  EXPECT_EQ(label(-8, 0, 15 + 4.5), kMuscle);
+  // Sizes: vein 4 × 2.2 mm semi-axes, artery lumen 3.5 + wall 1.2, nerve r 2.5, bone top 34.
+  EXPECT_EQ(label(-8 + 3.5, 0, 11), kVein);
+  EXPECT_EQ(label(-8 + 4.5, 0, 11), kMuscle);
+  EXPECT_EQ(label(-8, 0, 11 + 2.0), kVein);
+  EXPECT_EQ(label(-8, 0, 11 + 2.8), kMuscle);
   EXPECT_EQ(label(6 + 4.5, 0, 19), kArtery);
   EXPECT_EQ(label(6 + 5.5, 0, 19), kMuscle);
   EXPECT_EQ(label(15, 0, 13 + 3.0), kMuscle);
@@ -147,7 +147,7 @@ TEST_F(DefaultCase, BrightnessOrderedLikeBMode) {
   const ArmPhantom& ph = phantom_;
   const double lumen = mean_echo([&](int l, const Eigen::Vector3d& p) {
     const Eigen::Vector2d v = ph.vein_centre_mm(p.y()), a = ph.artery_centre_mm(p.y());
-    return (l == kVein && std::hypot((p.x() - v.x()) / 6.5, (p.z() - v.y()) / 4.0) < 0.6) ||
+    return (l == kVein && std::hypot((p.x() - v.x()) / 4.0, (p.z() - v.y()) / 2.2) < 0.6) ||
            (l == kArtery && std::hypot(p.x() - a.x(), p.z() - a.y()) < 2.5);
   });
   const double fat = mean_echo([](int l, const Eigen::Vector3d&) { return l == kFat; });
@@ -189,7 +189,7 @@ TEST_F(DefaultCase, PosteriorEnhancementBelowTheVein) {
     return mean_echo([&, below](int l, const Eigen::Vector3d& p) {
       const Eigen::Vector2d v = phantom_.vein_centre_mm(p.y());
       const double dx = p.x() - v.x();
-      return l == kMuscle && p.z() > v.y() + 4.5 && p.z() < v.y() + 8.0 &&
+      return l == kMuscle && p.z() > v.y() + 3.0 && p.z() < v.y() + 6.5 &&
              (below ? std::abs(dx) < 3.0 : (dx < -9.0 && dx > -15.0));
     });
   };
@@ -223,7 +223,7 @@ TEST(DefaultCaseDeterminism, FixedVoxelHash) {
   const auto generated = generate_default_case(settings);
   std::uint64_t h = 0xcbf29ce484222325ULL;
   for (const auto v : generated.labels.voxels()) h = (h ^ v) * 0x100000001b3ULL;
-  EXPECT_EQ(h, 0x8057e351c1de9af9ULL) << "0x" << std::hex << h;
+  EXPECT_EQ(h, 0xdda324ebbaf72820ULL) << "0x" << std::hex << h;
 }
 
 TEST(DefaultCaseToml, MatchesTheDocumentedFormat) {
@@ -236,9 +236,9 @@ TEST(DefaultCaseToml, MatchesTheDocumentedFormat) {
   const auto* nodes = t["mesh"]["nodes"].as_array();
   ASSERT_NE(nodes, nullptr);
   ASSERT_EQ(nodes->size(), 3u);
-  EXPECT_EQ(nodes->at(0).value_or(0), 25);
+  EXPECT_EQ(nodes->at(0).value_or(0), 37);
   EXPECT_EQ(nodes->at(1).value_or(0), 9);
-  EXPECT_EQ(nodes->at(2).value_or(0), 19);
+  EXPECT_EQ(nodes->at(2).value_or(0), 28);
   EXPECT_EQ(t["mesh"]["region_min_mm"][0].value_or(0.0), -30.0);
   EXPECT_EQ(t["mesh"]["region_max_mm"][2].value_or(0.0), 45.0);
   EXPECT_EQ(t["mesh"]["fixed_faces"][0].value_or(std::string()), "z_max");
@@ -279,7 +279,7 @@ TEST(DefaultCaseBuilt, ShippedCaseIsTheFullResolutionGrid) {
   EXPECT_EQ(echo.spacing_mm(), Eigen::Vector3d::Constant(0.25));
   EXPECT_EQ(echo.origin_mm(), Eigen::Vector3d(-30, -20, 0));
   EXPECT_TRUE(std::filesystem::exists(dir / "case.toml"));
-  EXPECT_EQ(labels.sample_nearest(Eigen::Vector3d(-8, 0, 15), 255), kVein);
+  EXPECT_EQ(labels.sample_nearest(Eigen::Vector3d(-8, 0, 11), 255), kVein);
   EXPECT_EQ(labels.sample_nearest(Eigen::Vector3d(6, 0, 19), 255), kArtery);
 }
 

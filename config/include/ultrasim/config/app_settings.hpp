@@ -21,6 +21,7 @@ struct AppSettings {
   sim::FemSettings fem;                    // [fem]
   sim::ExactFemSettings exact;             // [exact]
   sim::CorotationalSettings corotational;  // [corotational]
+  sim::HyperelasticSettings hyperelastic;  // [hyperelastic]
   sim::MsdsSettings msds;                  // [msds]
   sim::ProbeColliderSettings collider;     // [collider]
   sched::FrameBudgetSettings frame;        // [frame]

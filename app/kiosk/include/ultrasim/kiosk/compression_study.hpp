@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,14 +18,6 @@ namespace ultrasim::kiosk {
 // at the middle of the case's scan line in small steps; at each depth the probe force and the
 // vein's and artery's lumen areas in the image plane are measured (from the labels, mapped
 // through the deformed mesh).
-struct CompressionStudyOptions {
-  sim::EngineKind method = sim::EngineKind::kExactFem;
-  double max_depth_mm = 15.0;
-  double step_mm = 0.25;
-  // Frames simulated at each depth (quasi-static methods settle in one; dynamic ones need more).
-  int frames_per_step = 1;
-};
-
 struct CompressionSample {
   double depth_mm = 0.0;
   double force_n = 0.0;
@@ -32,6 +25,16 @@ struct CompressionSample {
   double artery_area_mm2 = 0.0;
   int inverted_tets = 0;
   bool diverged = false;
+};
+
+struct CompressionStudyOptions {
+  sim::EngineKind method = sim::EngineKind::kExactFem;
+  double max_depth_mm = 15.0;
+  double step_mm = 0.25;
+  // Frames simulated at each depth (quasi-static methods settle in one; dynamic ones need more).
+  int frames_per_step = 1;
+  // Called with each sample as it is measured (the slow methods take seconds a step).
+  std::function<void(const CompressionSample&)> on_sample;
 };
 
 struct CompressionStudy {

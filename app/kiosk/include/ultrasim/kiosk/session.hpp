@@ -104,7 +104,7 @@ class Session {
   hal::JobSystem& jobs_;
   sim::EngineSettings engine_settings_;
   std::vector<std::uint8_t> skin_nodes_;  // the mesh's skin face: where the probe can touch
-  std::array<std::unique_ptr<sim::DeformationEngine>, 5> engines_;  // built on first use
+  std::array<std::unique_ptr<sim::DeformationEngine>, 6> engines_;  // built on first use
   sim::DeformationEngine* engine_ = nullptr;
   hal::TimestampUs last_update_us_ = -1;
   geometry::TetLocator locator_;

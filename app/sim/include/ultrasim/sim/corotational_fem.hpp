@@ -61,13 +61,17 @@ class CorotationalFem final : public DeformationEngine {
   // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
   // surface, are held at its push-out target; nodes it pushed on last frame stay on its surface
   // as it lifts, until holding them would take a pull; nodes it had to pull on are let go.
-  // Recovery: a frame may not leave more inverted tets than the shape it started from had, nor
-  // a non-finite value. Such a frame is cut short along its update (1/2, 1/4, ... of it), or all
-  // the way back to the previous frame's shape, and reports diverged with Recovery::kSubstepped;
-  // inverted_tets then counts the rejected result's inverted tets. Tets with all four nodes held
-  // (pressed flat between contacts) are the constraints' doing: they are counted in
-  // inverted_tets but never make a frame diverge. Nothing resets to rest: with the probe still
-  // deep in the tissue, rest would put nodes far inside it. frame_dt_s is ignored.
+  // Recovery, with the other engines' tolerance: a frame may leave inverted tets up to
+  // settings.max_inverted_fraction of all tets (a few folded under the probe's rounded rim), or
+  // as many as the shape it started from had if that was more (a folded shape handed over by
+  // another engine), but no more, and no non-finite value. A frame over that is cut short along
+  // its update (1/2, 1/4, ... of it, the first within the limit), or all the way back to the
+  // previous frame's shape, and reports diverged with Recovery::kSubstepped; inverted_tets then
+  // counts the rejected result's inverted tets. A frame within the limit reports its inverted
+  // tets but not diverged. Tets with all four nodes held (pressed flat between contacts) are the
+  // constraints' doing: they are counted in inverted_tets but never against the limit. Nothing
+  // resets to rest: with the probe still deep in the tissue, rest would put nodes far inside it.
+  // frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
 
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
@@ -146,7 +150,10 @@ class CorotationalFem final : public DeformationEngine {
   PcgResult run_pcg(int max_iterations, double tolerance);
   // |Σ reaction over the contacts|, N; stores each contact's push for the next frame.
   double measure_contact_forces();
-  // Accepts the new shape, or recovers from a non-finite or inverting one; fills the stats.
+  // Inverted tets (with a free node) a frame may leave: max_inverted_fraction of all tets.
+  int inversion_limit() const;
+  // Accepts the new shape, or recovers from a non-finite one or one inverted over the limit;
+  // fills the stats.
   void accept_or_recover(EngineStepStats& stats);
   void update_deformed();
   struct InversionCount {

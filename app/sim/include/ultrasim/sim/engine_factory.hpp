@@ -19,6 +19,7 @@ struct EngineSettings {
   ExactFemSettings exact;
   MsdsSettings msds;
   CorotationalSettings corotational;
+  HyperelasticSettings hyperelastic;
 };
 
 // Builds the given method on the mesh. `skin_nodes` (empty or one flag per node) are the nodes
@@ -32,7 +33,7 @@ std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::
                                                hal::JobSystem* jobs = nullptr);
 
 // The method's short name in config files, reports and the command line: "pcg", "msds-explicit",
-// "exact", "corotational", "msds-implicit".
+// "exact", "corotational", "msds-implicit", "hyperelastic".
 std::string_view engine_key(EngineKind kind);
 std::optional<EngineKind> engine_from_key(std::string_view key);
 

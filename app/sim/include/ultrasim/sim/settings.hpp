@@ -11,6 +11,9 @@ struct Material {
   std::string name;                  // "skin", "fat", ...
   double youngs_modulus_kpa = 10.0;  // E; tissue spans ~1 kPa (fat, empty vein) to ~1 MPa (tendon)
   double poisson_ratio = 0.45;       // nu in [0, 0.5); near 0.5 is near-incompressible
+  // How fast the tissue stiffens as it is squeezed (γ of HyperelasticLaw, dimensionless, ≥ 0);
+  // only the hyperelastic FEM uses it: 0 is neo-Hookean; linear methods have no large strain.
+  double stiffening = 0.0;
 };
 
 // Quasi-static linear FEM solved by preconditioned conjugate gradients.
@@ -56,6 +59,11 @@ struct MsdsSettings {
 struct CorotationalSettings {
   int pcg_iterations_per_frame = 20;  // warm-started, as the published linear FEM
   double relative_tolerance = 1e-8;
+  // As FemSettings::max_inverted_fraction: a probe face's rounded rim folds a few tets long
+  // before the answer is useless. Above this fraction of all tets (counting those with a free
+  // node) a frame is cut short along its update; with 0, no frame may end with more inverted
+  // tets than it started with.
+  double max_inverted_fraction = 0.005;
 };
 
 // The deformation methods the kiosk can switch between live, on the same mesh.
@@ -65,6 +73,7 @@ enum class EngineKind {
   kExactFem,         // (c) quasi-static linear FEM solved exactly (factor once, condense contact)
   kCorotationalFem,  // (d) corotational linear FEM (per-tet rotation by polar decomposition)
   kMsdsImplicit,     // (e) mass-spring-damper system, implicit Euler (stable at any step)
+  kHyperelasticFem,  // (f) large-strain hyperelastic FEM, Newton's method (the vessel reference)
 };
 
 // Which deformation method runs.
@@ -94,6 +103,24 @@ struct ExactFemSettings {
   int max_cached_nodes = 256;
   // As FemSettings::max_inverted_fraction.
   double max_inverted_fraction = 0.005;
+};
+
+// The hyperelastic FEM: Newton's method on the large-strain equilibrium, contacts by active set.
+struct HyperelasticSettings {
+  // Newton iterations per solve (each contact round and the final solve), warm-started from the
+  // last frame; a solve stops early once converged. A lumen snapping shut under the probe takes
+  // ~60; a probe moving a few tenths of a millimetre, 5-10.
+  int newton_iterations_per_frame = 100;
+  // Converged: the largest out-of-balance force at a free node is below this fraction of the
+  // largest force at a held node (or of 1 mN with nothing held), and the last step moved no node
+  // by more than step_tolerance_mm.
+  double relative_force_tolerance = 1e-5;
+  double step_tolerance_mm = 1e-6;
+  // The probe's contact is frictionless (gel): each round solves with a penalty and moves each
+  // node's contact force (an augmented Lagrangian multiplier) until no node is more than
+  // contact_tolerance_mm inside the probe, or max_contact_rounds.
+  int max_contact_rounds = 8;
+  double contact_tolerance_mm = 1e-3;
 };
 
 // The probe as the tissue feels it.

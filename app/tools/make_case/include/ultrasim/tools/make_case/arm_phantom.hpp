@@ -29,10 +29,10 @@ struct ArmAnatomy {
   double skin_thickness_mm = 2.0;   // epidermis + dermis of the upper arm: 1.5–2.5 mm
   double fat_bottom_mm = 8.0;       // mean depth of the deep fascia under the fat
   double fat_bottom_wave_mm = 0.8;  // undulation of that boundary
-  double vein_x_mm = -8.0;          // centre of the ovoid vein (basilic/brachial-like)
-  double vein_z_mm = 15.0;
-  double vein_semi_x_mm = 6.5;  // lateral semi-axis (veins are wide and flat)
-  double vein_semi_z_mm = 4.0;  // depth semi-axis
+  double vein_x_mm = -8.0;  // centre of the ovoid vein (basilic-like, just under the fascia)
+  double vein_z_mm = 11.0;
+  double vein_semi_x_mm = 4.0;  // lateral semi-axis (veins are wide and flat; basilic 4-8 mm)
+  double vein_semi_z_mm = 2.2;  // depth semi-axis
   double vein_wall_mm = 0.4;    // thin wall
   double artery_x_mm = 6.0;     // centre of the round artery (brachial-like)
   double artery_z_mm = 19.0;
