@@ -112,7 +112,7 @@ def budget_panel(ax, rows, column, ylabel):
 
 
 def budget(rows, out_dir):
-    """Error against ms per frame as each method's budget grows: max norm and 2-norm side by side."""
+    """Error against ms per frame as each method's budget grows, max norm beside 2-norm."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharex=True)
     budget_panel(axes[0], rows, "error", "displacement error, max norm (relative)")
     budget_panel(axes[1], rows, "error_l2", "displacement error, 2-norm over the field (relative)")

@@ -3,7 +3,7 @@
 // displacement field against the exact FEM with the same (stick) contact after the same 60
 // frames (max norm, relative), contact force and inverted tets. For the Pareto chart:
 //   build/ci/tests/bench/engine_bench --benchmark_out=engines.csv --benchmark_out_format=csv
-//   python3 scripts/plot_engines.py engines.csv docs/images/
+//   /usr/bin/python3 scripts/plot_engines.py --bench engines.csv --out docs/images
 
 #include <benchmark/benchmark.h>
 

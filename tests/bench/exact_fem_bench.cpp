@@ -80,6 +80,8 @@ BENCHMARK(BM_ExactFemSlidingLinearProbe)
     ->Args({32, 16, 16, 2})
     ->Args({25, 9, 19, 1})
     ->Args({25, 9, 19, 2})
+    ->Args({37, 9, 28, 1})  // the default case's mesh
+    ->Args({37, 9, 28, 2})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace
