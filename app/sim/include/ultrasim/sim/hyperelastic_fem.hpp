@@ -19,7 +19,7 @@ namespace ultrasim::sim {
 // What the last step() or solve() did.
 struct HyperelasticSolveStats {
   int newton_iterations = 0;          // over all contact rounds
-  int contact_rounds = 0;             // solves with a changed active set, ≥ 1
+  int contact_rounds = 0;             // solves: contact rounds plus the final one, ≥ 1
   bool converged = false;             // the last round met the tolerances
   double max_free_force_mn = 0.0;     // largest out-of-balance force at a free node at the end
   double max_held_force_mn = 0.0;     // largest force at a held node at the end
@@ -27,16 +27,16 @@ struct HyperelasticSolveStats {
 };
 
 // Quasi-static large-strain FEM: linear tets, the hyperelastic law of HyperelasticLaw, solved by
-// Newton's method. The reference for large deformation: a vein whose lumen closes under the probe
-// while the tissue round it stiffens, which linear methods (a)-(e) cannot show (their answer
-// grows in proportion to the press, and their tets turn inside out before a lumen closes).
+// Newton's method. The reference for large deformation: however deep the press, no tet turns
+// inside out and the force stiffens with the geometry, where the linear methods' (a)-(e) answer
+// grows in proportion to the press and their tets fold under the probe's rim.
 //
 // Each Newton step assembles the tangent stiffness Σ Vₑ Dₑᵀ (∂P/∂F)⁺ Dₑ, each tet's ∂P/∂F
 // projected to its nearest positive semi-definite matrix (Teran et al. 2005), so the step always
 // goes downhill, and solves it by CHOLMOD's supernodal Cholesky (pattern analysed once). Held
-// nodes (fixed, prescribed, probe contacts) are Dirichlet rows. A line search halves the step
-// until every tet keeps a positive volume and, once every held node sits at its target, the
-// energy falls. So a solution has no inverted tet by construction.
+// nodes (fixed, prescribed) are Dirichlet rows. A line search halves the step until every tet
+// keeps a positive volume and, once every held node sits at its target, the energy falls. So a
+// solution has no inverted tet by construction.
 //
 // Probe contact is frictionless (gel), as the exact FEM's default and Hertz's: each free node
 // keeps out of the probe through an augmented Lagrangian, ψ = (max(0, λ − k d)² − λ²) / 2k with d
