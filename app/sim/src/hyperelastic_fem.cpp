@@ -293,12 +293,8 @@ bool HyperelasticFem::all_tets_positive_along(double alpha) {
     double inverted = 0.0;
     for (int t = chunk * kTetsPerChunk; t < end; ++t) {
       std::array<Eigen::Vector3d, 4> y;
-      for (int c = 0; c < 4; ++c) {
-        const int node = tets_[t][c];
-        y[c] = x_[node] + alpha * step_.segment<3>(3 * node);
-      }
-      const double det = (y[1] - y[0]).cross(y[2] - y[0]).dot(y[3] - y[0]);
-      if (!(det > 0.0)) inverted += 1.0;
+      for (int c = 0; c < 4; ++c) y[c] = position_along(tets_[t][c], alpha);
+      if (!(geometry::signed_tet_volume(y[0], y[1], y[2], y[3]) > 0.0)) inverted += 1.0;
     }
     chunk_partials_[chunk] = inverted;
   });
@@ -314,25 +310,29 @@ double HyperelasticFem::energy_along(double alpha) {
   for_each_chunk(chunks, [&](int chunk) {
     const int end = std::min(tets, (chunk + 1) * kTetsPerChunk);
     double sum = 0.0;
-    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
-      Eigen::Matrix3d ds;
-      const auto& tet = tets_[t];
-      const Eigen::Vector3d y0 = x_[tet[0]] + alpha * step_.segment<3>(3 * tet[0]);
-      for (int c = 1; c < 4; ++c) {
-        ds.col(c - 1) = x_[tet[c]] + alpha * step_.segment<3>(3 * tet[c]) - y0;
-      }
-      sum += rest_volume_[t] * laws_[t].energy_density_kpa(ds * rest_shape_inverse_[t]);
-    }
+    for (int t = chunk * kTetsPerChunk; t < end; ++t) sum += tet_energy_uj(t, alpha);
     chunk_partials_[chunk] = sum;
   });
   double energy = 0.0;
   for (double p : chunk_partials_) energy += p;
   for (int node = 0; node < node_count(); ++node) {
-    const Eigen::Vector3d u = x_[node] + alpha * step_.segment<3>(3 * node) - rest_[node];
-    energy -= load_.segment<3>(3 * node).dot(u);
-    if (probe_ != nullptr && !held_[node]) energy += contact_energy_uj(node, rest_[node] + u);
+    const Eigen::Vector3d x = position_along(node, alpha);
+    energy -= load_.segment<3>(3 * node).dot(x - rest_[node]);
+    if (probe_ != nullptr && !held_[node]) energy += contact_energy_uj(node, x);
   }
   return energy;
+}
+
+Eigen::Vector3d HyperelasticFem::position_along(int node, double alpha) const {
+  return x_[node] + alpha * step_.segment<3>(3 * node);
+}
+
+double HyperelasticFem::tet_energy_uj(int t, double alpha) const {
+  const auto& tet = tets_[t];
+  const Eigen::Vector3d y0 = position_along(tet[0], alpha);
+  Eigen::Matrix3d ds;
+  for (int c = 1; c < 4; ++c) ds.col(c - 1) = position_along(tet[c], alpha) - y0;
+  return rest_volume_[t] * laws_[t].energy_density_kpa(ds * rest_shape_inverse_[t]);
 }
 
 bool HyperelasticFem::newton(int max_iterations, double relative_tolerance) {
@@ -560,13 +560,5 @@ Eigen::Vector3d HyperelasticFem::reaction_force_mn(int node) const {
   return gradient_.segment<3>(3 * node);
 }
 
-double HyperelasticFem::strain_energy_uj() const {
-  double energy = 0.0;
-  for (int t = 0; t < tet_count(); ++t) {
-    const Eigen::Matrix3d f = edge_matrix(x_, corners(tets_[t])) * rest_shape_inverse_[t];
-    energy += rest_volume_[t] * laws_[t].energy_density_kpa(f);
-  }
-  return energy;
-}
 
 }  // namespace ultrasim::sim

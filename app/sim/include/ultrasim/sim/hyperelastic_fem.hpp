@@ -83,8 +83,6 @@ class HyperelasticFem final : public DeformationEngine {
   // The force the outside exerts on a node to hold it where it is (mN): ∂E/∂x − load. Zero at a
   // free node in equilibrium; the reaction at a held one.
   Eigen::Vector3d reaction_force_mn(int node) const;
-  // Strain energy of the current shape, µJ.
-  double strain_energy_uj() const;
   const HyperelasticSolveStats& last_solve_stats() const { return last_; }
   // Nodes the probe pushed at the end of the last step.
   std::span<const int> probe_contact_nodes() const { return contact_nodes_; }
@@ -103,6 +101,9 @@ class HyperelasticFem final : public DeformationEngine {
   void assemble(bool with_tangent);
   // Energy of positions x + alpha·step over all tets; +inf if a tet would invert.
   double energy_along(double alpha);
+  // Node and tet at x + alpha·step.
+  Eigen::Vector3d position_along(int node, double alpha) const;
+  double tet_energy_uj(int t, double alpha) const;
   bool all_tets_positive_along(double alpha);
   void scatter_tangents();
   // The probe's frictionless contact, an augmented Lagrangian per free node: the push
