@@ -560,5 +560,4 @@ Eigen::Vector3d HyperelasticFem::reaction_force_mn(int node) const {
   return gradient_.segment<3>(3 * node);
 }
 
-
 }  // namespace ultrasim::sim
