@@ -1,12 +1,20 @@
 #include "ultrasim/sim/msds.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <tuple>
 
 #include "model_checks.hpp"
+#include "msds_kernels.hpp"
+#include "msds_spring_lattice.hpp"
+#include "msds_task_team.hpp"
+#include "msds_tet_lattice.hpp"
 
 namespace ultrasim::sim {
 
@@ -37,13 +45,18 @@ namespace ultrasim::sim {
 
 namespace {
 
+using msds_detail::kNodePadding;
+
+// Node chunks are also the explicit step's blocks: their kinetic energies are summed in order.
 constexpr int kNodesPerChunk = 256;
 constexpr int kSpringsPerChunk = 1024;
-constexpr int kTetsPerChunk = 1024;
 constexpr int kMaxStepsPerFrame = 100000;  // steps << kMaxHalvings must fit an int
 // A node this close to the probe's surface (or inside it) is a contact: a node held on the surface
 // last step stays in contact while the probe stays.
 constexpr double kTouchToleranceMm = 1e-6;
+// A node whose clearance bound is below this is queried: the tolerance, plus as much again for the
+// rounding of the bound (each step's is ~1e-14 mm, and a frame's first step resets it).
+constexpr double kCandidateReachMm = 2.0 * kTouchToleranceMm;
 // A spring shorter than this fraction of its rest length has no reliable direction of its own.
 constexpr double kCollapsedFraction = 1e-9;
 constexpr double kKgPerMm3PerKgPerM3 = 1e-9;
@@ -149,7 +162,10 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
                        std::span<const Material> tet_materials,
                        std::span<const std::uint8_t> fixed_nodes, const MsdsSettings& settings,
                        hal::JobSystem* jobs)
-    : integrator_(integrator), settings_(settings), jobs_(jobs) {
+    : integrator_(integrator),
+      settings_(settings),
+      jobs_(jobs),
+      team_(std::make_unique<msds_detail::TaskTeam>(jobs)) {
   check_settings(settings);
   check_tet_model("MsdsEngine", mesh, tet_materials, fixed_nodes);
   rest_ = mesh.rest_positions_mm;
@@ -157,7 +173,7 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
   build_springs(mesh, tet_materials);
   build_masses(mesh);
   // A node in no tet has no mass and no spring: nothing could move it, so it never moves.
-  pinned_.resize(rest_.size());
+  pinned_.assign(rest_.size() + kNodePadding, 1);
   for (std::size_t i = 0; i < rest_.size(); ++i) {
     pinned_[i] = fixed_nodes[i] != 0 || !(mass_kg_[i] > 0.0);
   }
@@ -166,6 +182,26 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
   }
   build_adjacency();
   size_buffers();
+  build_contact_clusters();
+  if (integrator_ == MsdsIntegrator::kExplicitEuler) build_explicit_kernel();
+}
+
+MsdsEngine::~MsdsEngine() = default;
+
+void MsdsEngine::NodeVectors::assign_zero(int node_count) {
+  for (auto* a : {&x, &y, &z}) a->assign(static_cast<std::size_t>(node_count + kNodePadding), 0.0);
+}
+
+void MsdsEngine::NodeVectors::set(int node, const Eigen::Vector3d& value) {
+  x[node] = value.x();
+  y[node] = value.y();
+  z[node] = value.z();
+}
+
+void MsdsEngine::NodeVectors::copy_from(const NodeVectors& other) {
+  std::copy(other.x.begin(), other.x.end(), x.begin());
+  std::copy(other.y.begin(), other.y.end(), y.begin());
+  std::copy(other.z.begin(), other.z.end(), z.begin());
 }
 
 void MsdsEngine::build_springs(const geometry::TetMesh& mesh,
@@ -221,7 +257,8 @@ void MsdsEngine::scale_masses_to_time_step() {
         "MsdsSettings: time_step_s must be below damping_per_stiffness_s for explicit Euler to be "
         "stable at any mass");
   }
-  const std::vector<double> rows = gershgorin_row_sums(rest_, springs_, pinned_);
+  const std::vector<double> rows =
+      gershgorin_row_sums(rest_, springs_, std::span(pinned_).first(rest_.size()));
   double physical = 0.0, scaled = 0.0;
   for (std::size_t i = 0; i < mass_kg_.size(); ++i) {
     if (pinned_[i]) continue;
@@ -256,31 +293,113 @@ void MsdsEngine::build_adjacency() {
 }
 
 void MsdsEngine::size_buffers() {
-  const std::size_t n = rest_.size();
+  const int n = node_count();
+  const auto padded = static_cast<std::size_t>(n + kNodePadding);
+  position_.assign_zero(n);
+  velocity_.assign_zero(n);
+  for (int i = 0; i < n; ++i) position_.set(i, rest_[i]);
+  position_frame_start_.assign_zero(n);
+  velocity_frame_start_.assign_zero(n);
   x_ = rest_;
-  v_.assign(n, Eigen::Vector3d::Zero());
+  v_.assign(rest_.size(), Eigen::Vector3d::Zero());
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(n));
-  x_frame_start_ = x_;
-  v_frame_start_ = v_;
-  spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
-  spring_damping_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
-  contacts_.reserve(n);  // find_contacts never needs more: step() does not allocate
-  held_.assign(n, 0);
-  touching_only_.assign(n, 0);
-  contact_normal_.assign(n, Eigen::Vector3d::UnitZ());
+  padded_mass_kg_.assign(padded, 0.0);
+  inverse_mass_per_kg_.assign(padded, 0.0);
+  for (int i = 0; i < n; ++i) {
+    padded_mass_kg_[i] = mass_kg_[i];
+    if (!pinned_[i]) inverse_mass_per_kg_[i] = 1.0 / mass_kg_[i];
+  }
+  // find_contacts never needs more than every node: step() does not allocate.
+  contacts_.reserve(rest_.size());
+  candidate_nodes_.reserve(rest_.size());
+  candidate_positions_mm_.reserve(rest_.size());
+  candidate_fixed_.assign(rest_.size(), 0);
+  // Pinned nodes are never queried: an infinite clearance keeps them out of every block's minimum.
+  probe_clearance_mm_.assign(padded, std::numeric_limits<double>::infinity());
+  for (int i = 0; i < n; ++i) {
+    if (!pinned_[i]) probe_clearance_mm_[i] = 0.0;
+  }
+  block_min_clearance_mm_.assign(static_cast<std::size_t>(node_chunk_count()), 0.0);
+  held_.assign(padded, 0);
+  touching_only_.assign(rest_.size(), 0);
+  contact_normal_.assign(rest_.size(), Eigen::Vector3d::UnitZ());
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
-    spring_block_.assign(springs_.size(), Eigen::Matrix3d::Zero());
-    for (auto* buffer : {&inverse_diagonal_, &rhs_, &r_, &z_, &p_, &q_}) {
-      buffer->assign(n, Eigen::Vector3d::Zero());
+    spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
+    spring_damping_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
+    spring_block_.assign(springs_.size(), ImplicitSpringBlock{});
+    for (auto* buffer : {&inverse_diagonal_, &rhs_, &r_, &z_, &p_, &q_, &cg_velocity_}) {
+      buffer->assign(rest_.size(), Eigen::Vector3d::Zero());
     }
   }
+  tet_lattice_ = std::make_unique<msds_detail::TetLattice>(tets_, n);
   const int chunks = std::max({node_chunk_count(),
                                chunk_count(static_cast<int>(springs_.size()), kSpringsPerChunk),
-                               chunk_count(static_cast<int>(tets_.size()), kTetsPerChunk), 1});
+                               tet_lattice_->chunk_count(), 1});
   partial_a_.assign(chunks, 0.0);
   partial_b_.assign(chunks, 0.0);
   partial_c_.assign(chunks, 0.0);
   partial_finite_.assign(chunks, 1);
+}
+
+void MsdsEngine::build_contact_clusters() {
+  // Cubic cells about two mesh spacings wide (~8 nodes of a grid): one query per cell, and few
+  // nodes queried one by one near the probe.
+  Eigen::AlignedBox3d box;
+  for (const auto& p : rest_) box.extend(p);
+  const double volume = std::max(box.volume(), 1e-9);
+  const double cell_mm = 2.0 * std::cbrt(volume / static_cast<double>(rest_.size()));
+  std::map<std::array<long, 3>, std::vector<int>> cells;
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i]) continue;
+    const Eigen::Vector3d cell = ((rest_[i] - box.min()) / cell_mm).array().floor();
+    cells[{static_cast<long>(cell.x()), static_cast<long>(cell.y()), static_cast<long>(cell.z())}]
+        .push_back(i);
+  }
+  cluster_begin_.assign(1, 0);
+  for (const auto& [cell, nodes] : cells) {
+    Eigen::AlignedBox3d cell_box;
+    for (int i : nodes) cell_box.extend(rest_[i]);
+    cluster_center_mm_.push_back(cell_box.center());
+    cluster_nodes_.insert(cluster_nodes_.end(), nodes.begin(), nodes.end());
+    cluster_begin_.push_back(static_cast<int>(cluster_nodes_.size()));
+  }
+}
+
+// The explicit step's float kernel, split over tasks: task t sweeps the node blocks
+// [first_block[t], first_block[t + 1]) with its own scratch.
+struct MsdsEngine::ExplicitKernel {
+  explicit ExplicitKernel(msds_detail::SpringLattice springs) : lattice(std::move(springs)) {}
+
+  int task_count() const { return static_cast<int>(sweeps.size()); }
+
+  msds_detail::SpringLattice lattice;
+  std::vector<int> first_block;
+  std::vector<msds_detail::SpringLattice::Sweep> sweeps;
+  // Per task: the force on one block's nodes, x then y then z, each kBlockForceStride long.
+  static constexpr int kBlockForceStride = kNodesPerChunk + kNodePadding;
+  std::vector<std::vector<float>> block_force;
+  // The state at the start of the step (state[current]) and the one the step writes.
+  msds_detail::FloatNodeState state[2];
+  int current = 0;
+};
+
+void MsdsEngine::build_explicit_kernel() {
+  const int blocks = node_chunk_count();
+  // One task per thread: each task's first block recomputes the slots below it (a halo of the
+  // largest diagonal offset), so fewer, longer runs cost less.
+  const int tasks = std::clamp(team_->thread_count(), 1, blocks);
+  explicit_ = std::make_unique<ExplicitKernel>(
+      msds_detail::SpringLattice(rest_, springs_, settings_.damping_per_stiffness_s));
+  ExplicitKernel& k = *explicit_;
+  for (int t = 0; t <= tasks; ++t) k.first_block.push_back(t * blocks / tasks);
+  for (int t = 0; t < tasks; ++t) {
+    const int begin = k.first_block[t] * kNodesPerChunk;
+    const int end = std::min(node_count(), k.first_block[t + 1] * kNodesPerChunk);
+    k.sweeps.push_back(k.lattice.make_sweep(begin, end));
+    k.block_force.emplace_back(3 * ExplicitKernel::kBlockForceStride, 0.0f);
+  }
+  for (auto& state : k.state) state.assign_zero(node_count());
+  sync_float_state();
 }
 
 EngineKind MsdsEngine::kind() const {
@@ -295,11 +414,7 @@ std::string_view MsdsEngine::name() const {
 
 template <typename Body>
 void MsdsEngine::for_each_chunk(int count, Body&& body) {
-  if (jobs_ != nullptr && jobs_->thread_count() > 1 && count > 1) {
-    hal::parallel_for(*jobs_, count, [&body](int chunk) { body(chunk); });
-  } else {
-    for (int chunk = 0; chunk < count; ++chunk) body(chunk);
-  }
+  team_->for_each(count, body);
 }
 
 double MsdsEngine::sum_partials(const std::vector<double>& partials, int chunks) const {
@@ -325,8 +440,14 @@ int MsdsEngine::node_chunk_count() const {
 // Frame, recovery.
 
 EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
-  std::copy(x_.begin(), x_.end(), x_frame_start_.begin());
-  std::copy(v_.begin(), v_.end(), v_frame_start_.begin());
+  EngineStepStats stats;
+  team_->run([&] { stats = run_frame(probe); });
+  return stats;
+}
+
+EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
+  position_frame_start_.copy_from(position_);
+  velocity_frame_start_.copy_from(velocity_);
   // The frame's simulated time, steps × dt, in the explicit engine's steps or in fewer, larger
   // implicit ones.
   const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
@@ -338,8 +459,9 @@ EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s
     stats.diverged = true;
     stats.inverted_tets = attempt.inverted_tets;
     for (int halvings = 1; halvings <= kMaxHalvings && !attempt.accepted; ++halvings) {
-      std::copy(x_frame_start_.begin(), x_frame_start_.end(), x_.begin());
-      std::copy(v_frame_start_.begin(), v_frame_start_.end(), v_.begin());
+      position_.copy_from(position_frame_start_);
+      velocity_.copy_from(velocity_frame_start_);
+      sync_float_state();
       attempt = run_attempt(probe, dt / (1 << halvings), steps << halvings);
     }
     if (attempt.accepted) {
@@ -348,8 +470,9 @@ EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s
       // Smaller steps cannot help a probe that folds tets under its rim (the spring lattice has
       // no volume stiffness to stop it): show the frame's start, at rest, rather than flicker
       // to the undeformed tissue.
-      std::copy(x_frame_start_.begin(), x_frame_start_.end(), x_.begin());
-      std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+      position_.copy_from(position_frame_start_);
+      velocity_.assign_zero(node_count());
+      sync_float_state();
       stats.recovery = Recovery::kKeptLastGood;
     } else {
       reset_to_rest();
@@ -360,22 +483,24 @@ EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s
   stats.relative_residual = attempt.relative_residual;
   stats.contact_nodes = held_node_count();
   stats.contact_force_n = contact_force_n();
-  update_displacements();
+  publish_state();
   return stats;
 }
 
 MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, double dt_s,
                                                   int steps) {
   AttemptResult out;
-  // Counting inverted tets costs about a sixth of an explicit step and a few percent of an
-  // implicit one: every implicit step, every 4th explicit one (an explicit instability shows in
-  // the kinetic energy first), and always after the last, so a failing attempt stops early and a
-  // frame the probe inverts costs a few steps per try, not the whole frame. Not after the first
-  // step (unless it is the last): the probe's whole move since the last frame lands there at once
-  // and may fold the tets under it for that one step; the springs unfold them in the next.
+  // Counting inverted tets costs about half an explicit step (msds_tet_lattice.hpp) and a few
+  // percent of an implicit one: every implicit step, every 4th explicit one (an explicit
+  // instability shows in the kinetic energy first), and always after the last, so a failing attempt
+  // stops early and a frame the probe inverts costs a few steps per try, not the whole frame. Not
+  // after the first step (unless it is the last): the probe's whole move since the last frame lands
+  // there at once and may fold the tets under it for that one step; the springs unfold them in the
+  // next.
   const int check_every = integrator_ == MsdsIntegrator::kExplicitEuler ? 4 : 1;
   for (int s = 0; s < steps; ++s) {
-    const StepResult r = advance(probe, dt_s);
+    // The probe may have moved since the last frame (or try): the first step queries every node.
+    const StepResult r = advance(probe, dt_s, s == 0);
     out.iterations += integrator_ == MsdsIntegrator::kExplicitEuler ? 1 : r.cg_iterations;
     out.relative_residual = std::max(out.relative_residual, r.cg_relative_residual);
     // `!(a <= b)` also catches a NaN energy.
@@ -398,41 +523,49 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
 }
 
 int MsdsEngine::count_inverted_tets() {
-  const int tet_count = static_cast<int>(tets_.size());
-  const int tet_chunks = chunk_count(tet_count, kTetsPerChunk);
-  for_each_chunk(tet_chunks, [&](int chunk) {
-    int inverted = 0;
-    const int end = std::min(tet_count, (chunk + 1) * kTetsPerChunk);
-    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
-      const auto& tet = tets_[t];
-      inverted +=
-          geometry::signed_tet_volume(x_[tet[0]], x_[tet[1]], x_[tet[2]], x_[tet[3]]) <= 0.0;
-    }
-    partial_a_[chunk] = inverted;
-  });
-  return static_cast<int>(sum_partials(partial_a_, tet_chunks));
+  const int chunks = tet_lattice_->chunk_count();
+  const double* x = position_.x.data();
+  const double* y = position_.y.data();
+  const double* z = position_.z.data();
+  for_each_chunk(chunks,
+                 [&](int chunk) { partial_a_[chunk] = tet_lattice_->count(chunk, x, y, z); });
+  return static_cast<int>(sum_partials(partial_a_, chunks));
 }
 
 void MsdsEngine::integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps) {
-  for (int s = 0; s < steps; ++s) advance(probe, dt_s);
-  update_displacements();
+  team_->run([&] {
+    for (int s = 0; s < steps; ++s) advance(probe, dt_s, s == 0);
+  });
+  publish_state();
 }
 
-MsdsEngine::StepResult MsdsEngine::advance(const ProbeCollider* probe, double dt_s) {
-  apply_contacts(probe);
+MsdsEngine::StepResult MsdsEngine::advance(const ProbeCollider* probe, double dt_s,
+                                           bool new_probe) {
+  apply_contacts(probe, new_probe);
+  if (integrator_ == MsdsIntegrator::kExplicitEuler) return explicit_euler_update(dt_s);
   compute_spring_forces(dt_s);
-  return integrator_ == MsdsIntegrator::kExplicitEuler ? explicit_euler_update(dt_s)
-                                                       : implicit_euler_update(dt_s);
+  return implicit_euler_update(dt_s);
 }
 
 void MsdsEngine::reset_to_rest() {
-  std::copy(rest_.begin(), rest_.end(), x_.begin());
-  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+  for (int i = 0; i < node_count(); ++i) position_.set(i, rest_[i]);
+  velocity_.assign_zero(node_count());
   clear_contacts();
+  sync_float_state();
 }
 
-void MsdsEngine::update_displacements() {
-  for (int i = 0; i < node_count(); ++i) u_.segment<3>(3 * i) = x_[i] - rest_[i];
+void MsdsEngine::sync_float_state() {
+  if (!explicit_) return;
+  msds_detail::FloatNodeState& state = explicit_->state[explicit_->current];
+  for (int i = 0; i < node_count(); ++i) state.set(i, position_[i], velocity_[i]);
+}
+
+void MsdsEngine::publish_state() {
+  for (int i = 0; i < node_count(); ++i) {
+    x_[i] = position_[i];
+    v_[i] = velocity_[i];
+    u_.segment<3>(3 * i) = x_[i] - rest_[i];
+  }
 }
 
 void MsdsEngine::set_displacements_mm(const Eigen::VectorXd& u_mm) {
@@ -444,18 +577,20 @@ void MsdsEngine::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   if (!u_mm.allFinite()) {
     throw std::invalid_argument("MSDS: set_displacements_mm got a non-finite displacement");
   }
+  for (int i = 0; i < node_count(); ++i) {
+    const Eigen::Vector3d u =
+        pinned_[i] ? Eigen::Vector3d::Zero() : Eigen::Vector3d(u_mm.segment<3>(3 * i));
+    position_.set(i, rest_[i] + u);
+  }
+  velocity_.assign_zero(node_count());
+  clear_contacts();
+  sync_float_state();
+  publish_state();
   // u_ keeps the given field exactly (not rest + u − rest), so switching back and forth between
   // engines does not drift by rounding.
   for (int i = 0; i < node_count(); ++i) {
-    if (pinned_[i]) {
-      u_.segment<3>(3 * i).setZero();
-    } else {
-      u_.segment<3>(3 * i) = u_mm.segment<3>(3 * i);
-    }
-    x_[i] = rest_[i] + u_.segment<3>(3 * i);
+    if (!pinned_[i]) u_.segment<3>(3 * i) = u_mm.segment<3>(3 * i);
   }
-  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
-  clear_contacts();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -466,19 +601,93 @@ void MsdsEngine::clear_contacts() {
   contacts_.clear();
 }
 
-void MsdsEngine::apply_contacts(const ProbeCollider* probe) {
+void MsdsEngine::apply_contacts(const ProbeCollider* probe, bool new_probe) {
   clear_contacts();
   if (probe == nullptr) return;
-  find_contacts(*probe, x_, pinned_, kTouchToleranceMm, contacts_);
+  collect_contact_candidates(*probe, new_probe);
+  // The published collision test, on the nodes that may pass it.
+  find_contacts(*probe, candidate_positions_mm_,
+                std::span(candidate_fixed_).first(candidate_positions_mm_.size()),
+                kTouchToleranceMm, contacts_);
   // As published: onto the probe's surface. The probe does not move within a frame, so a node
   // held on it has zero velocity (zeroed, not just its normal part: the contact is sticky while
   // held, as the published FEM's Dirichlet contact).
-  for (const auto& c : contacts_) {
-    x_[c.node] = c.target_mm;
-    v_[c.node].setZero();
+  for (auto& c : contacts_) {
+    c.node = candidate_nodes_[c.node];
+    position_.set(c.node, c.target_mm);
+    velocity_.set(c.node, Eigen::Vector3d::Zero());
+    if (explicit_) {
+      explicit_->state[explicit_->current].set(c.node, c.target_mm, Eigen::Vector3d::Zero());
+    }
     held_[c.node] = 1;
     touching_only_[c.node] = c.depth_mm <= kTouchToleranceMm;
     contact_normal_[c.node] = c.normal;
+  }
+}
+
+// The probe's signed distance is a distance (1-Lipschitz): it changes no faster than a node
+// moves, and over a ball of radius r it is within r of its value at the centre. A node whose bound
+// on it (probe_clearance_mm_) is above the contact tolerance cannot be in contact and is not
+// queried. `!(a >= b)` below also queries a NaN.
+
+void MsdsEngine::collect_contact_candidates(const ProbeCollider& probe, bool new_probe) {
+  candidate_nodes_.clear();
+  if (new_probe) {
+    query_every_cluster(probe);
+  } else {
+    query_nodes_near_probe(probe);
+  }
+  std::sort(candidate_nodes_.begin(), candidate_nodes_.end());
+  candidate_positions_mm_.clear();
+  for (int node : candidate_nodes_) candidate_positions_mm_.push_back(position_[node]);
+}
+
+void MsdsEngine::query_every_cluster(const ProbeCollider& probe) {
+  for (std::size_t c = 0; c + 1 < cluster_begin_.size(); ++c) {
+    const Eigen::Vector3d& center = cluster_center_mm_[c];
+    double radius_squared = 0.0;
+    for (int e = cluster_begin_[c]; e < cluster_begin_[c + 1]; ++e) {
+      const double d2 = (position_[cluster_nodes_[e]] - center).squaredNorm();
+      if (!(d2 <= radius_squared)) radius_squared = d2;  // NaN sticks
+    }
+    const double bound = probe.signed_distance_mm(center) - std::sqrt(radius_squared);
+    for (int e = cluster_begin_[c]; e < cluster_begin_[c + 1]; ++e) {
+      if (bound >= kCandidateReachMm) {
+        probe_clearance_mm_[cluster_nodes_[e]] = bound;
+      } else {
+        query_node(probe, cluster_nodes_[e]);
+      }
+    }
+  }
+  update_block_min_clearances();
+}
+
+void MsdsEngine::query_nodes_near_probe(const ProbeCollider& probe) {
+  // Only blocks whose least bound reaches the probe hold nodes to query.
+  for (int block = 0; block < node_chunk_count(); ++block) {
+    double& block_min = block_min_clearance_mm_[block];
+    if (block_min >= kCandidateReachMm) continue;
+    block_min = std::numeric_limits<double>::infinity();
+    const int end = std::min(node_count(), (block + 1) * kNodesPerChunk);
+    for (int i = block * kNodesPerChunk; i < end; ++i) {
+      if (!(probe_clearance_mm_[i] >= kCandidateReachMm)) query_node(probe, i);
+      block_min = std::min(block_min, probe_clearance_mm_[i]);
+    }
+  }
+}
+
+void MsdsEngine::query_node(const ProbeCollider& probe, int node) {
+  double& clearance = probe_clearance_mm_[node];
+  clearance = probe.signed_distance_mm(position_[node]);
+  if (!(clearance >= kCandidateReachMm)) candidate_nodes_.push_back(node);
+}
+
+void MsdsEngine::update_block_min_clearances() {
+  for (int block = 0; block < node_chunk_count(); ++block) {
+    const auto first = probe_clearance_mm_.begin() + block * kNodesPerChunk;
+    const auto last =
+        probe_clearance_mm_.begin() + std::min(node_count(), (block + 1) * kNodesPerChunk);
+    block_min_clearance_mm_[block] = *std::min_element(first, last);
   }
 }
 
@@ -493,7 +702,7 @@ void MsdsEngine::release_if_pulled_away(int node, const Eigen::Vector3d& force_m
 
 Eigen::Vector3d MsdsEngine::spring_direction(int from, int to, double rest_length_mm,
                                              double& length_mm) const {
-  const Eigen::Vector3d d = x_[to] - x_[from];
+  const Eigen::Vector3d d = position_[to] - position_[from];
   length_mm = d.norm();
   if (length_mm > kCollapsedFraction * rest_length_mm) return d / length_mm;
   // Collapsed (or not finite): push apart along the rest direction.
@@ -510,7 +719,7 @@ void MsdsEngine::gather_node_forces(int node, Eigen::Vector3d& elastic_mn,
     double length = 0.0;
     const Eigen::Vector3d dir = spring_direction(node, other, s.rest_length_mm, length);
     elastic_mn += s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir;
-    damping_mn += s.damping_mn_s_per_mm * (v_[other] - v_[node]).dot(dir) * dir;
+    damping_mn += s.damping_mn_s_per_mm * (velocity_[other] - velocity_[node]).dot(dir) * dir;
   }
 }
 
@@ -518,7 +727,6 @@ void MsdsEngine::compute_spring_forces(double dt_s) {
   // Each spring once (its length and direction cost a square root and a division); the node
   // passes then sum their springs' forces (sum_node_forces): no two tasks write the same place,
   // and every node adds in the same order with or without jobs.
-  const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
   const int spring_count = static_cast<int>(springs_.size());
   for_each_chunk(chunk_count(spring_count, kSpringsPerChunk), [&](int chunk) {
     const int end = std::min(spring_count, (chunk + 1) * kSpringsPerChunk);
@@ -532,8 +740,8 @@ void MsdsEngine::compute_spring_forces(double dt_s) {
       // rigid rotation of the edge, as in the published MSDS.
       spring_elastic_mn_[s] = spring.stiffness_mn_per_mm * (length - spring.rest_length_mm) * dir;
       spring_damping_mn_[s] =
-          spring.damping_mn_s_per_mm * (v_[spring.b] - v_[spring.a]).dot(dir) * dir;
-      if (implicit) spring_block_[s] = implicit_spring_block(spring, dir, length, dt_s);
+          spring.damping_mn_s_per_mm * (velocity_[spring.b] - velocity_[spring.a]).dot(dir) * dir;
+      spring_block_[s] = implicit_spring_block(spring, dir, length, dt_s);
     }
   });
 }
@@ -571,32 +779,57 @@ int MsdsEngine::held_node_count() const {
 // Explicit Euler (b).
 
 MsdsEngine::StepResult MsdsEngine::explicit_euler_update(double dt_s) {
-  // One pass per node: its force, the contact release, the update (it reads only its own node).
-  const int n = node_count();
-  const int chunks = node_chunk_count();
-  for_each_chunk(chunks, [&](int chunk) {
-    double kinetic = 0.0;
-    bool finite = true;
-    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      if (pinned_[i]) continue;
-      Eigen::Vector3d elastic, damping;
-      sum_node_forces(i, elastic, damping);
-      const Eigen::Vector3d force = elastic + damping;
-      release_if_pulled_away(i, force);
-      if (held_[i]) continue;
-      // Forward Euler, as published: both updates use the state at the start of the step; the
-      // position advances with the old velocity and the velocity with the old state's force
-      // (springs and damping at the old positions and velocities, compute_spring_forces()).
-      x_[i] += dt_s * v_[i];
-      v_[i] += (dt_s / mass_kg_[i]) * force;
-      kinetic += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
-      finite = finite && x_[i].allFinite() && v_[i].allFinite();
-    }
-    partial_a_[chunk] = kinetic;
-    partial_finite_[chunk] = finite;
-  });
+  // One pass over node blocks per task: each block's spring forces (SpringLattice), the contact
+  // release, the update (it reads only its own nodes and writes the other float state buffer).
+  for_each_chunk(explicit_->task_count(), [&](int task) { explicit_euler_task(task, dt_s); });
+  explicit_->current = 1 - explicit_->current;
   return gather_update_result();
+}
+
+void MsdsEngine::explicit_euler_task(int task, double dt_s) {
+  ExplicitKernel& k = *explicit_;
+  msds_detail::SpringLattice::Sweep& sweep = k.sweeps[task];
+  const msds_detail::FloatNodeState& state = k.state[k.current];
+  msds_detail::FloatNodeState& next_state = k.state[1 - k.current];
+  float* force_x = k.block_force[task].data();
+  float* force_y = force_x + ExplicitKernel::kBlockForceStride;
+  float* force_z = force_y + ExplicitKernel::kBlockForceStride;
+  const msds_detail::ExplicitNodeArrays nodes{.x = position_.x.data(),
+                                              .y = position_.y.data(),
+                                              .z = position_.z.data(),
+                                              .vx = velocity_.x.data(),
+                                              .vy = velocity_.y.data(),
+                                              .vz = velocity_.z.data(),
+                                              .mass_kg = padded_mass_kg_.data(),
+                                              .inverse_mass_per_kg = inverse_mass_per_kg_.data(),
+                                              .probe_clearance_mm = probe_clearance_mm_.data()};
+  k.lattice.start_sweep(sweep, state);
+  for (int block = k.first_block[task]; block < k.first_block[task + 1]; ++block) {
+    const int begin = block * kNodesPerChunk;
+    const int end = std::min(node_count(), begin + kNodesPerChunk);
+    k.lattice.block_forces(sweep, state, begin, end, force_x, force_y, force_z);
+    settle_contacts(begin, end, force_x, force_y, force_z);
+    // Forward Euler, as published: both updates use the state at the start of the step; the
+    // position advances with the old velocity and the velocity with the old state's force.
+    // Pinned nodes have no inverse mass and held ones no force: neither moves.
+    const msds_detail::NodeUpdateSums sums = k.lattice.kernels().forward_euler(
+        nodes, begin, end, dt_s, force_x, force_y, force_z, next_state);
+    partial_a_[block] = sums.kinetic_energy_uj;
+    partial_finite_[block] = sums.finite;
+    block_min_clearance_mm_[block] = sums.min_probe_clearance_mm;
+  }
+}
+
+void MsdsEngine::settle_contacts(int begin, int end, float* force_x, float* force_y,
+                                 float* force_z) {
+  auto c =
+      std::lower_bound(contacts_.begin(), contacts_.end(), begin,
+                       [](const NodeContact& contact, int node) { return contact.node < node; });
+  for (; c != contacts_.end() && c->node < end; ++c) {
+    const int i = c->node - begin;
+    release_if_pulled_away(c->node, Eigen::Vector3d(force_x[i], force_y[i], force_z[i]));
+    if (held_[c->node]) force_x[i] = force_y[i] = force_z[i] = 0.0f;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -616,9 +849,14 @@ MsdsEngine::StepResult MsdsEngine::explicit_euler_update(double dt_s) {
 MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   const int n = node_count();
   const int chunks = node_chunk_count();
+  // v1 starts at v0 (the warm start), which is zero on every contact (held or released) and pinned
+  // node, so a neighbour's release in the pass below does not change what a node reads.
+  for_each_chunk(chunks, [&](int chunk) {
+    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) cg_velocity_[i] = velocity_[i];
+  });
   // One pass per node: its forces, the contact release, its row of the system and the warm-start
-  // residual. v1 starts at v0, which is zero on every contact (held or released) and pinned node,
-  // so a neighbour's release in this same pass does not change what this node reads.
+  // residual.
   for_each_chunk(chunks, [&](int chunk) {
     double rhs_squared = 0.0, rz = 0.0, rr = 0.0;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
@@ -633,8 +871,8 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
             diagonal += spring_block_[adjacency_spring_[e]].diagonal();
           }
           inverse_diagonal_[i] = diagonal.cwiseInverse();
-          rhs_[i] = mass_kg_[i] * v_[i] + dt_s * elastic;
-          r_[i] = rhs_[i] - system_row_times(i, v_);
+          rhs_[i] = mass_kg_[i] * cg_velocity_[i] + dt_s * elastic;
+          r_[i] = rhs_[i] - system_row_times(i, cg_velocity_);
           z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
           p_[i] = z_[i];
           rhs_squared += rhs_[i].squaredNorm();
@@ -679,7 +917,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
       double rz_chunk = 0.0, rr = 0.0;
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
       for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-        v_[i] += alpha * p_[i];
+        cg_velocity_[i] += alpha * p_[i];
         r_[i] -= alpha * q_[i];
         z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
         rz_chunk += r_[i].dot(z_[i]);
@@ -704,14 +942,13 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   return result;
 }
 
-Eigen::Matrix3d MsdsEngine::implicit_spring_block(const MsdsSpring& spring,
-                                                  const Eigen::Vector3d& dir, double length_mm,
-                                                  double h) {
-  const Eigen::Matrix3d along = dir * dir.transpose();
+MsdsEngine::ImplicitSpringBlock MsdsEngine::implicit_spring_block(const MsdsSpring& spring,
+                                                                  const Eigen::Vector3d& dir,
+                                                                  double length_mm, double h) {
+  // h c n nᵀ + h² k [n nᵀ + t (I − n nᵀ)] = (h c + h² k (1 − t)) n nᵀ + h² k t I.
   const double transverse = std::max(0.0, 1.0 - spring.rest_length_mm / length_mm);
-  const Eigen::Matrix3d stiffness =
-      spring.stiffness_mn_per_mm * (along + transverse * (Eigen::Matrix3d::Identity() - along));
-  return h * spring.damping_mn_s_per_mm * along + h * h * stiffness;
+  const double k = h * h * spring.stiffness_mn_per_mm;
+  return {h * spring.damping_mn_s_per_mm + k * (1.0 - transverse), k * transverse, dir};
 }
 
 Eigen::Vector3d MsdsEngine::system_row_times(int node,
@@ -719,7 +956,7 @@ Eigen::Vector3d MsdsEngine::system_row_times(int node,
   // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not.
   Eigen::Vector3d sum = mass_kg_[node] * p[node];
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
-    sum += spring_block_[adjacency_spring_[e]] * (p[node] - p[adjacency_other_[e]]);
+    sum += spring_block_[adjacency_spring_[e]].times(p[node] - p[adjacency_other_[e]]);
   }
   return sum;
 }
@@ -730,15 +967,23 @@ MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s) {
   for_each_chunk(chunks, [&](int chunk) {
     double kinetic = 0.0;
     bool finite = true;
+    double min_clearance = std::numeric_limits<double>::infinity();
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      min_clearance = std::min(min_clearance, probe_clearance_mm_[i]);
       if (!moves(i)) continue;
-      x_[i] += dt_s * v_[i];  // backward Euler: the new velocity moves the node
-      kinetic += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
-      finite = finite && x_[i].allFinite() && v_[i].allFinite();
+      const Eigen::Vector3d& v = cg_velocity_[i];
+      const Eigen::Vector3d x = position_[i] + dt_s * v;  // backward Euler: the new velocity
+      position_.set(i, x);
+      velocity_.set(i, v);
+      probe_clearance_mm_[i] -= dt_s * v.lpNorm<1>();  // see ExplicitNodeArrays
+      min_clearance = std::min(min_clearance, probe_clearance_mm_[i]);
+      kinetic += 0.5 * mass_kg_[i] * v.squaredNorm();
+      finite = finite && x.allFinite() && v.allFinite();
     }
     partial_a_[chunk] = kinetic;
     partial_finite_[chunk] = finite;
+    block_min_clearance_mm_[chunk] = min_clearance;
   });
   return gather_update_result();
 }
@@ -748,7 +993,8 @@ MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s) {
 
 double MsdsEngine::explicit_stable_time_step_s() const {
   return forward_euler_stable_time_step_s(
-      msds_max_omega_squared_bound(rest_, springs_, mass_kg_, pinned_),
+      msds_max_omega_squared_bound(rest_, springs_, mass_kg_,
+                                   std::span(pinned_).first(rest_.size())),
       settings_.damping_per_stiffness_s);
 }
 
@@ -763,14 +1009,14 @@ void MsdsEngine::internal_forces_mn(Eigen::VectorXd& forces_mn) const {
 
 double MsdsEngine::kinetic_energy_uj() const {
   double energy = 0.0;
-  for (int i = 0; i < node_count(); ++i) energy += 0.5 * mass_kg_[i] * v_[i].squaredNorm();
+  for (int i = 0; i < node_count(); ++i) energy += 0.5 * mass_kg_[i] * velocity_[i].squaredNorm();
   return energy;
 }
 
 double MsdsEngine::elastic_energy_uj() const {
   double energy = 0.0;
   for (const auto& s : springs_) {
-    const double stretch = (x_[s.b] - x_[s.a]).norm() - s.rest_length_mm;
+    const double stretch = (position_[s.b] - position_[s.a]).norm() - s.rest_length_mm;
     energy += 0.5 * s.stiffness_mn_per_mm * stretch * stretch;
   }
   return energy;
@@ -779,7 +1025,8 @@ double MsdsEngine::elastic_energy_uj() const {
 int MsdsEngine::inverted_tet_count() const {
   int inverted = 0;
   for (const auto& t : tets_) {
-    inverted += geometry::signed_tet_volume(x_[t[0]], x_[t[1]], x_[t[2]], x_[t[3]]) <= 0.0;
+    inverted += msds_detail::six_signed_volume(position_.x.data(), position_.y.data(),
+                                               position_.z.data(), t) <= 0.0;
   }
   return inverted;
 }

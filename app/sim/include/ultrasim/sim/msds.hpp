@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -14,6 +15,11 @@
 #include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::sim {
+
+namespace msds_detail {
+class TaskTeam;
+class TetLattice;
+}  // namespace msds_detail
 
 // One spring of the mass-spring-damper system: a unique tet edge.
 struct MsdsSpring {
@@ -85,11 +91,31 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 // and at a stable step it simulates microseconds a frame, too little to follow a moving probe.
 // The implicit one is the usable MSDS; it is stable with any steps_per_frame, 1 included.
 //
-// Units: mm, kPa, mN, kg, s (mN = kg·mm/s²); energies in µJ (mN·mm). With a JobSystem the force
-// gathering, the implicit solver's vector work and the inversion count are split into fixed node
-// (spring, tet) chunks; each node gathers its own springs and every sum is taken in chunk order,
-// so results are bitwise the same with and without jobs, whatever the thread count. step() does
-// not allocate.
+// Explicit Euler's speed (the published configuration runs 20 steps a frame):
+//   - Layout: springs are grouped by node-index offset ("diagonals", msds_spring_lattice.hpp) and
+//     tets by node-offset pattern (msds_tet_lattice.hpp), so that on a grid mesh the kernels read
+//     positions with plain SIMD loads instead of gathering them; springs and tets of other meshes
+//     are handled one by one. Each step is one fused pass over node blocks: the block's spring
+//     forces, their per-node sums, the contact release and the update.
+//   - SIMD: AVX2 where the CPU has it, picked at run time (the build targets baseline x86-64),
+//     else portable std::experimental::simd; both do the same IEEE operations in the same order,
+//     so results do not depend on which runs (msds_kernels.hpp).
+//   - Single precision where it is safe: positions and velocities are kept in double and mirrored
+//     to float each step; each spring's force is computed and summed per node in float (rounding
+//     ~1e-7 of a spring's force: ≤ 2e-4 of the motion against a naive double reference over tens
+//     of steps, msds_reference_test.cpp). The update, energies, contacts, the inversion count
+//     (exact) and every diagnostic are in double; the implicit integrator is all double.
+//   - Contacts: only nodes that may have reached the probe are queried. Each node keeps a lower
+//     bound of its distance to the probe (the probe's signed distance changes no faster than the
+//     node moves), and a frame's first step queries spatial clusters of nodes before nodes.
+//
+// Units: mm, kPa, mN, kg, s (mN = kg·mm/s²); energies in µJ (mN·mm). With a JobSystem a frame is
+// one JobSystem::run(): its parallel stages are shared among the job system's threads inside that
+// run (msds_task_team.hpp; one run per stage cost more than the stage on a 2-core machine). The
+// explicit step is split into fixed node ranges (one per thread, each recomputing the springs
+// below its start), the implicit solver's vector work and the inversion count into fixed chunks;
+// each node sums its own springs and every sum is taken in block (chunk) order, so results are
+// bitwise the same with and without jobs, whatever the thread count. step() does not allocate.
 class MsdsEngine final : public DeformationEngine {
  public:
   // Frame re-runs with the step halved before giving up and resetting to rest.
@@ -112,6 +138,7 @@ class MsdsEngine final : public DeformationEngine {
              const MsdsSettings& settings, hal::JobSystem* jobs = nullptr);
   MsdsEngine(const MsdsEngine&) = delete;
   MsdsEngine& operator=(const MsdsEngine&) = delete;
+  ~MsdsEngine() override;
 
   EngineKind kind() const override;
   std::string_view name() const override;
@@ -161,6 +188,21 @@ class MsdsEngine final : public DeformationEngine {
     int cg_iterations = 0;
     double cg_relative_residual = 0.0;
   };
+  // One spring's h·C_s + h²·K_s = along n nᵀ + across I (n its unit vector): every term of it
+  // is n nᵀ or I, so 5 numbers instead of a 3×3 block, and fewer loads and flops in the implicit
+  // solver's matrix-free product.
+  struct ImplicitSpringBlock {
+    double along = 0.0;
+    double across = 0.0;
+    Eigen::Vector3d dir = Eigen::Vector3d::UnitX();
+
+    Eigen::Vector3d times(const Eigen::Vector3d& p) const {
+      return along * dir.dot(p) * dir + across * p;
+    }
+    Eigen::Vector3d diagonal() const {
+      return along * dir.cwiseProduct(dir) + Eigen::Vector3d::Constant(across);
+    }
+  };
   struct AttemptResult {
     bool accepted = false;
     bool blew_up = false;  // non-finite or kinetic energy past the ceiling (not just inversion)
@@ -168,6 +210,18 @@ class MsdsEngine final : public DeformationEngine {
     int iterations = 0;  // integration steps (explicit) or CG iterations (implicit)
     double relative_residual = 0.0;
   };
+  // Per-node 3-vectors, one array per coordinate (structure of arrays, for SIMD), each
+  // msds_detail::kNodePadding past the last node (zero there).
+  struct NodeVectors {
+    std::vector<double> x, y, z;
+
+    void assign_zero(int node_count);
+    Eigen::Vector3d operator[](int node) const { return {x[node], y[node], z[node]}; }
+    void set(int node, const Eigen::Vector3d& value);
+    void copy_from(const NodeVectors& other);  // same size: no allocation
+  };
+  // The explicit step's float kernel and its scratch (msds.cpp).
+  struct ExplicitKernel;
 
   // Setup (allocates).
   void build_springs(const geometry::TetMesh& mesh, std::span<const Material> tet_materials);
@@ -175,31 +229,54 @@ class MsdsEngine final : public DeformationEngine {
   void scale_masses_to_time_step();
   void build_adjacency();
   void size_buffers();
+  void build_explicit_kernel();
+  void build_contact_clusters();
 
   // One frame's pieces (no allocation).
+  EngineStepStats run_frame(const ProbeCollider* probe);
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
   int count_inverted_tets();  // inverted_tet_count() on the job system
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
-  StepResult advance(const ProbeCollider* probe, double dt_s);
+  // new_probe: the probe may differ from the last step's (the first step of a frame or a run):
+  // query every node for contact, not only those that may have reached it.
+  StepResult advance(const ProbeCollider* probe, double dt_s, bool new_probe);
   void clear_contacts();
-  void apply_contacts(const ProbeCollider* probe);
+  void apply_contacts(const ProbeCollider* probe, bool new_probe);
+  // The free nodes that may be in contact (candidate_*, in node order), with fresh probe
+  // clearances: every node for a new probe, else those whose bound reaches the probe.
+  void collect_contact_candidates(const ProbeCollider& probe, bool new_probe);
+  void query_every_cluster(const ProbeCollider& probe);
+  void query_nodes_near_probe(const ProbeCollider& probe);
+  // Queries one node: its clearance, and whether it is a candidate.
+  void query_node(const ProbeCollider& probe, int node);
+  // Each node block's least clearance (block_min_clearance_mm_), from the nodes'.
+  void update_block_min_clearances();
   void release_if_pulled_away(int node, const Eigen::Vector3d& force_mn);
-  // Every spring's elastic and damping force at the current state (and, implicit, its block).
+  // Every spring's elastic and damping force at the current state and its implicit block.
   void compute_spring_forces(double dt_s);
   // A node's share of those: Σ ± over its springs, in adjacency order.
   void sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
   StepResult explicit_euler_update(double dt_s);
+  // The explicit step on one task's run of node blocks.
+  void explicit_euler_task(int task, double dt_s);
+  // The contacts among nodes [begin, end), given their float spring forces: let go those pulled
+  // away (release_if_pulled_away); zero the force of those still held, which do not move.
+  void settle_contacts(int begin, int end, float* force_x, float* force_y, float* force_z);
   StepResult implicit_euler_update(double dt_s);
-  // h·C_s + h²·K_s of one spring (3×3), the transverse stiffness clamped at ≥ 0.
-  static Eigen::Matrix3d implicit_spring_block(const MsdsSpring& spring, const Eigen::Vector3d& dir,
-                                               double length_mm, double h);
+  // h·C_s + h²·K_s of one spring, the transverse stiffness clamped at ≥ 0.
+  static ImplicitSpringBlock implicit_spring_block(const MsdsSpring& spring,
+                                                   const Eigen::Vector3d& dir, double length_mm,
+                                                   double h);
   // Row `node` of (M + h C + h² K) times p.
   Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p) const;
   StepResult finish_implicit_update(double dt_s);
   double contact_force_n() const;
   int held_node_count() const;
   void reset_to_rest();
-  void update_displacements();
+  // The float copy of the state the explicit kernel reads (after any change outside its pass).
+  void sync_float_state();
+  // Refreshes the public views of the state: x_, v_ and u_.
+  void publish_state();
 
   // Spring + damping force on one node from its springs, at the current state (computed afresh).
   void gather_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
@@ -209,7 +286,8 @@ class MsdsEngine final : public DeformationEngine {
                                    double& length_mm) const;
   bool moves(int node) const { return pinned_[node] == 0 && held_[node] == 0; }
 
-  // Runs body(chunk) for chunk in [0, count), on the job system when there is one.
+  // Runs body(chunk) for chunk in [0, count): inside step() and integrate_unchecked() on the
+  // job system's threads (one JobSystem::run() per call, msds_task_team.hpp), else inline.
   template <typename Body>
   void for_each_chunk(int count, Body&& body);
   // Σ of the first `chunks` partial sums, in chunk order (identical with and without jobs).
@@ -221,11 +299,15 @@ class MsdsEngine final : public DeformationEngine {
   MsdsIntegrator integrator_;
   MsdsSettings settings_;
   hal::JobSystem* jobs_ = nullptr;
+  std::unique_ptr<msds_detail::TaskTeam> team_;
   std::vector<Eigen::Vector3d> rest_;
   std::vector<geometry::Tet> tets_;
-  std::vector<std::uint8_t> pinned_;  // fixed, or in no tet (no mass): never moves
+  // Fixed, or in no tet (no mass): never moves. kNodePadding past the last node (pinned there).
+  std::vector<std::uint8_t> pinned_;
   std::vector<MsdsSpring> springs_;
-  std::vector<double> mass_kg_;
+  std::vector<double> mass_kg_;              // node_count entries (the public view)
+  std::vector<double> padded_mass_kg_;       // kNodePadding past the last node (zero there)
+  std::vector<double> inverse_mass_per_kg_;  // likewise; 0 on pinned nodes
   double kinetic_energy_ceiling_uj_ = 0.0;
   double mass_scale_ = 1.0;
   // Node → springs (CSR), each entry with the spring's other node, in spring order.
@@ -235,20 +317,38 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<double> adjacency_sign_;  // +1 where the node is the spring's a, −1 where b
 
   // State.
-  std::vector<Eigen::Vector3d> x_;  // deformed positions, mm
+  NodeVectors position_;  // deformed positions, mm
+  NodeVectors velocity_;  // mm/s
+  // Public views, refreshed at the end of every step and state change (publish_state).
+  std::vector<Eigen::Vector3d> x_;  // positions, mm
   std::vector<Eigen::Vector3d> v_;  // velocities, mm/s
-  Eigen::VectorXd u_;               // x − rest, node-major; refreshed at the end of a step
+  Eigen::VectorXd u_;               // x − rest, node-major
 
   // Per-step and per-frame scratch, sized once.
-  std::vector<Eigen::Vector3d> x_frame_start_, v_frame_start_;
-  std::vector<Eigen::Vector3d> spring_elastic_mn_, spring_damping_mn_;  // per spring, on a
-  std::vector<NodeContact> contacts_;
-  std::vector<std::uint8_t> held_;           // contact held on the probe surface this step
+  NodeVectors position_frame_start_, velocity_frame_start_;
+  std::vector<NodeContact> contacts_;        // in node order
+  std::vector<std::uint8_t> held_;           // contact held on the probe surface this step (padded)
   std::vector<std::uint8_t> touching_only_;  // contact on the surface, not inside: may be let go
   std::vector<Eigen::Vector3d> contact_normal_;  // the probe's outward normal at a contact
-  // Implicit Euler: per spring h·C_s + h²·K_s (3×3), the system's inverse diagonal, CG vectors.
-  std::vector<Eigen::Matrix3d> spring_block_;
-  std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_;
+  // A lower bound of each node's signed distance to the probe (mm, padded); see
+  // msds_detail::ExplicitNodeArrays.
+  std::vector<double> probe_clearance_mm_;
+  std::vector<double> block_min_clearance_mm_;  // per node chunk, the least of those
+  std::vector<int> candidate_nodes_;            // may be in contact this step, in node order
+  std::vector<Eigen::Vector3d> candidate_positions_mm_;
+  std::vector<std::uint8_t> candidate_fixed_;  // all 0: candidates are free nodes
+  // Free nodes grouped by spatial cells of a few nodes (CSR), each cell's centre at rest: a new
+  // probe is queried once per cluster, and node by node only in clusters that may reach it.
+  std::vector<int> cluster_begin_;
+  std::vector<int> cluster_nodes_;
+  std::vector<Eigen::Vector3d> cluster_center_mm_;
+  std::unique_ptr<ExplicitKernel> explicit_;              // explicit integrator only
+  std::unique_ptr<msds_detail::TetLattice> tet_lattice_;  // the inversion count's layout
+  // Implicit Euler: per spring its forces and h·C_s + h²·K_s, the system's inverse diagonal, CG
+  // vectors (cg_velocity_: the new velocity being solved for).
+  std::vector<Eigen::Vector3d> spring_elastic_mn_, spring_damping_mn_;  // per spring, on a
+  std::vector<ImplicitSpringBlock> spring_block_;
+  std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
   std::vector<double> partial_a_, partial_b_, partial_c_;
   std::vector<std::uint8_t> partial_finite_;
 };
