@@ -1,105 +1,26 @@
 // The explicit MSDS engine (float SIMD spring kernel, msds_spring_lattice.hpp) against a
-// deliberately naive reference written here: one explicit step in double, spring by spring, with
-// no layout, no SIMD and no shortcuts. Both start from the same state and take the same steps.
+// deliberately naive reference (tests/support/naive_msds.hpp): one explicit step in double,
+// spring by spring. Both start from the same state and take the same steps.
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <numeric>
 #include <random>
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "naive_msds.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
-#include "ultrasim/sim/contact.hpp"
 #include "ultrasim/sim/msds.hpp"
 
 namespace ultrasim::sim {
 namespace {
 
 using testing::Block;
-
-constexpr double kTouchToleranceMm = 1e-6;  // the engine's contact tolerance (msds.cpp)
-
-// The published MSDS, explicit Euler, the obvious way.
-struct ReferenceMsds {
-  struct Spring {
-    int a = 0, b = 0;
-    double rest_length_mm = 0.0;
-    double stiffness_mn_per_mm = 0.0;
-    double damping_mn_s_per_mm = 0.0;
-  };
-  std::vector<Spring> springs;
-  std::vector<double> mass_kg;
-  std::vector<std::uint8_t> fixed;
-  std::vector<Eigen::Vector3d> x, v;
-  int held_nodes = 0;  // after the last step
-
-  // Springs on the tets' edges (k = Σ E × stiffness_per_modulus_mm over the edge's tets, c = β k),
-  // lumped masses (a quarter of each tet's volume × density), at rest.
-  static ReferenceMsds from_block(const Block& b, const MsdsSettings& s) {
-    ReferenceMsds r;
-    const auto& p = b.mesh.rest_positions_mm;
-    std::map<std::pair<int, int>, double> stiffness;
-    r.mass_kg.assign(p.size(), 0.0);
-    for (int t = 0; t < b.mesh.tet_count(); ++t) {
-      const auto& tet = b.mesh.tets[t];
-      for (int i = 0; i < 4; ++i) {
-        for (int j = i + 1; j < 4; ++j) {
-          stiffness[{std::min(tet[i], tet[j]), std::max(tet[i], tet[j])}] +=
-              b.materials[t].youngs_modulus_kpa * s.stiffness_per_modulus_mm;
-        }
-      }
-      const double volume_mm3 =
-          geometry::signed_tet_volume(p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]]);
-      for (int n : tet) r.mass_kg[n] += 0.25 * volume_mm3 * s.density_kg_per_m3 * 1e-9;
-    }
-    for (const auto& [edge, k] : stiffness) {
-      r.springs.push_back({edge.first, edge.second, (p[edge.second] - p[edge.first]).norm(), k,
-                           k * s.damping_per_stiffness_s});
-    }
-    r.fixed = b.fixed;
-    r.x = p;
-    r.v.assign(p.size(), Eigen::Vector3d::Zero());
-    return r;
-  }
-
-  // One step: contacts (nodes inside the probe onto its surface, held at zero velocity), every
-  // spring's elastic and damping force, the release of touching nodes pulled away, forward Euler.
-  void step(double dt_s, const ProbeCollider* probe) {
-    const int n = static_cast<int>(x.size());
-    std::vector<NodeContact> contacts;
-    if (probe != nullptr) find_contacts(*probe, x, fixed, kTouchToleranceMm, contacts);
-    std::vector<std::uint8_t> held(n, 0);
-    for (const auto& c : contacts) {
-      x[c.node] = c.target_mm;
-      v[c.node].setZero();
-      held[c.node] = 1;
-    }
-    std::vector<Eigen::Vector3d> force(n, Eigen::Vector3d::Zero());
-    for (const Spring& s : springs) {
-      const Eigen::Vector3d d = x[s.b] - x[s.a];
-      const double length = d.norm();
-      const Eigen::Vector3d dir = d / length;
-      const Eigen::Vector3d f = s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir +
-                                s.damping_mn_s_per_mm * (v[s.b] - v[s.a]).dot(dir) * dir;
-      force[s.a] += f;
-      force[s.b] -= f;
-    }
-    for (const auto& c : contacts) {
-      if (c.depth_mm <= kTouchToleranceMm && force[c.node].dot(c.normal) > 0.0) held[c.node] = 0;
-    }
-    held_nodes = static_cast<int>(std::count(held.begin(), held.end(), 1));
-    for (int i = 0; i < n; ++i) {
-      if (fixed[i] || held[i]) continue;
-      x[i] += dt_s * v[i];
-      v[i] += dt_s / mass_kg[i] * force[i];
-    }
-  }
-};
+using ultrasim::testing::NaiveMsds;
 
 Block make_block(Eigen::Vector3i nodes = {9, 5, 5}) {
   // Two materials, so that springs on the boundary sum different moduli.
@@ -155,7 +76,7 @@ struct Deviation {
   double velocity = 0.0;
 };
 
-Deviation deviation(const MsdsEngine& engine, const ReferenceMsds& r, const Block& b) {
+Deviation deviation(const MsdsEngine& engine, const NaiveMsds& r, const Block& b) {
   double dx = 0.0, dv = 0.0, u_max = 0.0, v_max = 0.0;
   for (int i = 0; i < engine.node_count(); ++i) {
     dx = std::max(dx, (engine.deformed_positions_mm()[i] - r.x[i]).norm());
@@ -181,7 +102,7 @@ void expect_matches_reference(const Block& b, const MsdsSettings& settings, doub
                               const ProbeCollider* probe, const Eigen::VectorXd& start_mm,
                               bool reference_uses_engine_masses = false) {
   MsdsEngine engine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, settings);
-  ReferenceMsds reference = ReferenceMsds::from_block(b, settings);
+  NaiveMsds reference(b.mesh, b.materials, b.fixed, settings);
   ASSERT_EQ(engine.springs().size(), reference.springs.size());
   if (reference_uses_engine_masses) {
     reference.mass_kg.assign(engine.node_masses_kg().begin(), engine.node_masses_kg().end());
