@@ -17,6 +17,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # reference FEM solver for the accuracy tests (DESIGN.md §4)
   calculix-ccx
+  # the charts in docs/ (scripts/plot_engines.py)
+  python3-matplotlib
 )
 
 missing=()

@@ -2,12 +2,12 @@
 """Charts for docs/: the deformation methods' speed against accuracy, and the compression study.
 
   python3 scripts/plot_engines.py --bench engines.csv --budget budget.csv \
-      --compression exact.csv pcg.csv --out docs/images
+      --compression exact.csv pcg.csv --stability DIR --out docs/images
 
 engines.csv: build/ci/tests/bench/engine_bench --benchmark_out=engines.csv
 --benchmark_out_format=csv; budget.csv: the same from engine_budget_bench (error against time
 as each method's per-frame budget grows). Compression CSVs: ultrasim-kiosk --compression-study
-FILE --method M.
+FILE --method M. Stability: the folder build/ci/tests/bench/stability_map --out DIR wrote.
 Needs python3-matplotlib (Debian); nothing in the build or the tests uses this script.
 """
 
@@ -155,11 +155,108 @@ def compression(paths, out_dir):
     fig.savefig(out_dir / "compression.png", dpi=110)
 
 
+# What an engine did about a divergence, worst first, with the colours the map draws them in.
+RECOVERY_COLOURS = {
+    "reset": ("reset to rest", "#c0392b"),
+    "kept-last-good": ("frame refused, last good shape kept", "#e67e22"),
+    "substepped": ("rescued by smaller steps", "#f1c40f"),
+    "none": ("stable", "#27ae60"),
+}
+
+
+def read_rows(path):
+    return list(csv.DictReader(Path(path).read_text().splitlines()))
+
+
+def stability_time_step(ax, rows, method, title):
+    pts = [r for r in rows if r["method"] == method]
+    for recovery, (name, colour) in RECOVERY_COLOURS.items():
+        sel = [r for r in pts if r["recovery"] == recovery]
+        if sel:
+            ax.scatter([float(r["muscle_kpa"]) for r in sel], [float(r["dt_s"]) for r in sel],
+                       s=60, marker="s", color=colour, label=name)
+    moduli = sorted({float(r["muscle_kpa"]) for r in pts})
+    bound = {float(r["muscle_kpa"]): float(r["explicit_bound_dt_s"]) for r in pts}
+    ax.plot(moduli, [bound[m] for m in moduli], "k-", lw=1,
+            label="explicit bound (largest stiffness/mass)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("muscle modulus, kPa (fat 0.4×)")
+    ax.set_ylabel("time step, s (physical masses)")
+    ax.axhline(0.005, color="grey", lw=0.8, ls=":")
+    ax.text(moduli[0], 0.005, "published 5 ms", va="bottom", fontsize=7, color="grey")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.2)
+
+
+def stability_poisson(ax, rows):
+    for method in ["pcg", "corotational", "msds-explicit", "msds-implicit"]:
+        pts = sorted((r for r in rows if r["method"] == method), key=lambda r: float(r["nu"]))
+        ax.plot([float(r["nu"]) for r in pts],
+                [max(float(r["error_after_hold"]), ERROR_FLOOR) for r in pts], "o-", ms=4,
+                label=METHOD_NAMES[method])
+    ax.set_yscale("log")
+    ax.set_xlabel("Poisson's ratio ν (every tissue)")
+    ax.set_ylabel("error vs exact FEM at the same ν, after 40 frames held")
+    ax.set_title("ν → 0.5: 20 PCG iterations fall behind as the stiffness locks;\n"
+                 "the spring model has no ν at all", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.2)
+
+
+def stability_depth(ax, rows):
+    methods = ["pcg", "msds-explicit", "exact", "corotational", "msds-implicit", "hyperelastic"]
+    colours = {"ok": "#27ae60", "inverted": "#8fd19e"}
+    for y, method in enumerate(methods):
+        for r in (r for r in rows if r["method"] == method):
+            if r["finite"] != "1":
+                colour = "black"
+            elif r["recovery"] != "none":
+                colour = RECOVERY_COLOURS[r["recovery"]][1]
+            elif float(r["inverted_fraction"]) > 0:
+                colour = colours["inverted"]
+            else:
+                colour = colours["ok"]
+            ax.barh(y, 0.5, left=float(r["depth_mm"]) - 0.5, height=0.7, color=colour)
+    ax.set_yticks(range(len(methods)))
+    ax.set_yticklabels([METHOD_NAMES.get(m, m) for m in methods], fontsize=7)
+    ax.axvline(45, color="black", lw=1, ls="--")
+    ax.text(45, len(methods) - 0.4, " bottom of the tissue", fontsize=7)
+    ax.set_xlabel("probe depth below the skin, mm (45 mm block, fixed at the bottom)")
+    ax.set_title("A probe pushed through the tissue: light green, a few tets inverted (counted, "
+                 "< 0.5 %)", fontsize=9)
+    ax.set_xlim(0, 60)
+
+
+def stability(folder, out_dir):
+    folder = Path(folder)
+    dt_rows = read_rows(folder / "stability-dt.csv")
+    fig = plt.figure(figsize=(13, 9))
+    grid = fig.add_gridspec(2, 3, height_ratios=[1, 0.8])
+    stability_time_step(fig.add_subplot(grid[0, 0]), dt_rows, "msds-explicit",
+                        "(b) explicit Euler MSDS: 20 steps a frame, pressing 2 mm")
+    ax = fig.add_subplot(grid[0, 1])
+    stability_time_step(ax, dt_rows, "msds-implicit", "(e) implicit Euler MSDS: the same runs")
+    handles, labels = ax.get_legend_handles_labels()
+    stability_poisson(fig.add_subplot(grid[0, 2]), read_rows(folder / "stability-nu.csv"))
+    stability_depth(fig.add_subplot(grid[1, :]), read_rows(folder / "stability-depth.csv"))
+    for recovery, (name, colour) in RECOVERY_COLOURS.items():
+        if name not in labels:
+            handles.append(plt.Rectangle((0, 0), 1, 1, color=colour))
+            labels.append(name)
+    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=5)
+    fig.suptitle("Where each method fails, and what the engine does about it "
+                 "(16×8×8 nodes, fat over muscle)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    fig.savefig(out_dir / "stability-map.png", dpi=110)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--bench", help="engine_bench CSV")
     parser.add_argument("--budget", help="engine_budget_bench CSV")
     parser.add_argument("--compression", nargs="*", default=[], help="compression study CSVs")
+    parser.add_argument("--stability", help="folder with stability_map's CSVs")
     parser.add_argument("--out", default="docs/images")
     args = parser.parse_args()
     out_dir = Path(args.out)
@@ -170,6 +267,8 @@ def main():
         budget(read_bench(args.budget), out_dir)
     if args.compression:
         compression(args.compression, out_dir)
+    if args.stability:
+        stability(args.stability, out_dir)
 
 
 if __name__ == "__main__":
