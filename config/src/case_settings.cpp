@@ -76,6 +76,11 @@ TableSchema<CaseMesh> mesh_schema() {
               "Faces of the region whose nodes do not move."));
   t.add(field("fix_label", &S::fix_label, List<IntegerIn<int>>{.element = kLabel, .unique = true},
               "Nodes inside these labels (e.g. bone) do not move either."));
+  t.add(field("material_mixing", &S::material_mixing,
+              Choice<sim::MaterialMixing>{{{"centroid", sim::MaterialMixing::kCentroid},
+                                           {"reuss", sim::MaterialMixing::kReuss}}},
+              "A tet cut by several labels: the label at its centroid (published), or the Reuss "
+              "average of its tissues by volume."));
   t.check(check_region);
   return t;
 }

@@ -1,9 +1,9 @@
 #include "ultrasim/kiosk/tissue_case.hpp"
 
-#include <map>
 #include <string>
 
 #include "ultrasim/imaging/metaimage.hpp"
+#include "ultrasim/kiosk/tet_materials.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -56,27 +56,8 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
                               mesh_settings.nodes[2]);
   c.mesh = geometry::make_grid_tet_mesh(geometry::GridSpec::spanning(lo, hi, nodes));
 
-  std::map<int, const sim::Material*> by_label;
-  for (const auto& m : c.settings.materials) by_label[m.label] = &m;
-  std::map<int, int> unassigned;  // label → tets without a material
-  c.tet_materials.reserve(c.mesh.tets.size());
-  for (const auto& tet : c.mesh.tets) {
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (auto n : tet) centroid += c.mesh.rest_positions_mm[n] / 4.0;
-    const int label = c.labels.sample_nearest(centroid, 0);
-    const auto it = by_label.find(label);
-    if (it == by_label.end()) {
-      ++unassigned[label];
-      c.tet_materials.push_back(sim::Material{});
-    } else {
-      c.tet_materials.push_back(*it->second);
-    }
-  }
-  if (!unassigned.empty()) {
-    const auto& [label, count] = *unassigned.begin();
-    throw CaseError(toml + ": [[materials]]: no entry for label " + std::to_string(label) +
-                    ", which fills " + std::to_string(count) + " tets of the mesh");
-  }
+  c.tet_materials =
+      tet_materials(c.mesh, c.labels, c.settings.materials, mesh_settings.material_mixing, toml);
 
   c.fixed_nodes.assign(c.mesh.rest_positions_mm.size(), 0);
   for (std::size_t n = 0; n < c.fixed_nodes.size(); ++n) {

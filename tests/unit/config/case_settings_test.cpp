@@ -30,6 +30,7 @@ region_min_mm = [-30.0, -20.0, 0.0] # simulated region; defaults to the volume's
 region_max_mm = [30.0, 20.0, 45.0]
 fixed_faces = ["z_max"]             # any of x_min x_max y_min y_max z_min z_max
 fix_label = [7]                     # nodes inside these labels (bone) are fixed too
+material_mixing = "reuss"           # a tet cut by several labels: centroid (default) or reuss
 
 [[materials]]                       # one per label that occurs in the mesh region
 label = 1
@@ -79,6 +80,7 @@ void expect_same(const CaseSettings& a, const CaseSettings& b) {
   EXPECT_EQ(a.mesh.region_max_mm, b.mesh.region_max_mm);
   EXPECT_EQ(a.mesh.fixed_faces, b.mesh.fixed_faces);
   EXPECT_EQ(a.mesh.fix_label, b.mesh.fix_label);
+  EXPECT_EQ(a.mesh.material_mixing, b.mesh.material_mixing);
   ASSERT_EQ(a.materials.size(), b.materials.size());
   for (std::size_t i = 0; i < a.materials.size(); ++i) {
     EXPECT_EQ(a.materials[i].label, b.materials[i].label);
@@ -109,6 +111,7 @@ TEST(CaseSettings, LoadsTheDocumentedExampleFromItsFolder) {
   EXPECT_EQ(c.mesh.region_max_mm, (std::array<double, 3>{30.0, 20.0, 45.0}));
   EXPECT_THAT(c.mesh.fixed_faces, ElementsAre(BoxFace::kZMax));
   EXPECT_THAT(c.mesh.fix_label, ElementsAre(7));
+  EXPECT_EQ(c.mesh.material_mixing, sim::MaterialMixing::kReuss);
   ASSERT_EQ(c.materials.size(), 1u);
   EXPECT_EQ(c.materials[0].label, 1);
   EXPECT_EQ(c.materials[0].name, "skin");
@@ -139,6 +142,7 @@ TEST(CaseSettings, OptionalPartsKeepDefaults) {
   EXPECT_FALSE(c.mesh.region_max_mm.has_value());
   EXPECT_TRUE(c.mesh.fixed_faces.empty());
   EXPECT_TRUE(c.mesh.fix_label.empty());
+  EXPECT_EQ(c.mesh.material_mixing, sim::MaterialMixing::kCentroid);
   EXPECT_EQ(c.materials.at(0).poisson_ratio, sim::Material{}.poisson_ratio);
   EXPECT_EQ(c.probe.kind, imaging::ProbeGeometry{}.kind);
   EXPECT_EQ(c.probe.width_mm, imaging::ProbeGeometry{}.width_mm);
@@ -160,6 +164,7 @@ TEST(CaseSettings, EveryFieldRoundTripsThroughFormat) {
   c.mesh.fixed_faces = {BoxFace::kXMin, BoxFace::kXMax, BoxFace::kYMin,
                         BoxFace::kYMax, BoxFace::kZMin, BoxFace::kZMax};
   c.mesh.fix_label = {7, 0, 255};
+  c.mesh.material_mixing = sim::MaterialMixing::kReuss;
   c.materials = {{.label = 1, .name = "skin", .youngs_modulus_kpa = 150.0, .poisson_ratio = 0.45},
                  {.label = 4, .name = "vein", .youngs_modulus_kpa = 1e7, .poisson_ratio = 0.0}};
   c.probe = {.kind = imaging::ProbeKind::kConvex,
@@ -290,6 +295,16 @@ TEST(CaseSettings, FixedFacesAreKnownNamesWithoutDuplicates) {
                                           "case.toml", dir.path());
               }).message,
               HasSubstr("mesh.fixed_faces[1]: duplicate value \"z_max\""));
+}
+
+TEST(CaseSettings, MaterialMixingIsAKnownRule) {
+  const CaseDir dir;
+  EXPECT_THAT(error_of([&] {
+                (void)parse_case_settings(minimal_case("material_mixing = \"voigt\"\n"),
+                                          "case.toml", dir.path());
+              }).message,
+              HasSubstr("mesh.material_mixing: unknown value \"voigt\"; allowed: one of "
+                        "\"centroid\", \"reuss\""));
 }
 
 TEST(CaseSettings, BadProbeKindListsAllowedValues) {

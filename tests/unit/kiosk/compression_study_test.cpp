@@ -26,7 +26,7 @@ TEST(CompressionStudy, TheVeinCollapsesUnderTheProbeWhileTheArteryStaysOpen) {
   ASSERT_TRUE(study.vein_collapse_force_n.has_value()) << "the vein never fell to 10 %";
   const double f_v = *study.vein_collapse_force_n;
   RecordProperty("vein_collapse_force_n", std::to_string(f_v));
-  // Measured 10.0 N at 10.5 mm: a firm press of a 38 × 10 mm face (26 kPa), as sonographers use.
+  // Measured 7.4 N at 8 mm (Reuss mixing): a firm press of a 38 × 10 mm face, as sonographers use.
   EXPECT_GT(f_v, 5.0);
   EXPECT_LT(f_v, 15.0);
   const CompressionSample& rest = study.samples.front();

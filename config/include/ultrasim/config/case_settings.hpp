@@ -23,6 +23,8 @@ struct CaseMesh {
   std::optional<std::array<double, 3>> region_max_mm;
   std::vector<BoxFace> fixed_faces;  // nodes on these faces do not move; no duplicates
   std::vector<int> fix_label;        // nodes inside these labels (e.g. bone) do not move either
+  // How a tet cut by several labels gets its material (sim::MaterialMixing).
+  sim::MaterialMixing material_mixing = sim::MaterialMixing::kCentroid;
 };
 
 // [scan]: the scripted probe's sweep over the case, for headless runs. Millimetres, patient space.

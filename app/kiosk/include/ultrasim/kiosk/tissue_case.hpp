@@ -25,7 +25,7 @@ struct TissueCase {
   imaging::Volume<std::uint8_t> volume;      // B-mode echo
   imaging::Volume<std::uint8_t> labels;      // tissue labels (docs/case-format.md)
   geometry::TetMesh mesh;                    // rest configuration over the case's region
-  std::vector<sim::Material> tet_materials;  // one per tet, from the label at its centroid
+  std::vector<sim::Material> tet_materials;  // one per tet ([mesh] material_mixing)
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface
   std::vector<DisplaySurface> structures;    // vein, artery, nerve, bone, as the 3D view shows them

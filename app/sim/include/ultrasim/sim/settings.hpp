@@ -16,6 +16,17 @@ struct Material {
   double stiffening = 0.0;
 };
 
+// How a tet that the label volume cuts into several tissues gets its material.
+enum class MaterialMixing {
+  // The tissue at the tet's centroid, as published: a tet the vein's lumen half fills is all
+  // muscle or all lumen, so on a grid coarser than the lumen its wall is as stiff as the muscle.
+  kCentroid,
+  // The Reuss (uniform-stress) average of the tissues in the tet by volume: as soft as its phases
+  // in series. The lower bound on the mixture's stiffness; on the default case it converges to
+  // the fine mesh's answer from the other side of the centroid rule, and closer (docs/accuracy.md).
+  kReuss,
+};
+
 // Quasi-static linear FEM solved by preconditioned conjugate gradients.
 struct FemSettings {
   // PCG iterations per frame, warm-started from the previous frame's displacement. The published
