@@ -178,16 +178,16 @@ TEST_F(SceneRendererTest, DrawDoesNotAllocateAfterTheFirstFrames) {
   frame_once();
   frame_once();
   // The counter itself works: one vector, one allocation.
-  testing::start_counting_allocations();
+  ::ultrasim::testing::start_counting_allocations();
   std::vector<int> probe(16);
-  EXPECT_EQ(testing::stop_counting_allocations(), 1);
+  EXPECT_EQ(::ultrasim::testing::stop_counting_allocations(), 1);
 
-  testing::start_counting_allocations();
+  ::ultrasim::testing::start_counting_allocations();
   for (int i = 0; i < 5; ++i) {
     frame_.frame_index = 100000 + i;
     frame_once();
   }
-  EXPECT_EQ(testing::stop_counting_allocations(), 0);
+  EXPECT_EQ(::ultrasim::testing::stop_counting_allocations(), 0);
 }
 
 TEST(SceneRendererScreenshot, WritesTheKioskScreen) {

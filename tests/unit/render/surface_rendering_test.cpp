@@ -346,9 +346,9 @@ TEST_F(SurfaceRendering, DeformingSurfacesDoNotAllocateAfterTheFirstFrames) {
   };
   frame_once(0);
   frame_once(1);
-  testing::start_counting_allocations();
+  ::ultrasim::testing::start_counting_allocations();
   for (int i = 2; i < 7; ++i) frame_once(i);
-  EXPECT_EQ(testing::stop_counting_allocations(), 0);
+  EXPECT_EQ(::ultrasim::testing::stop_counting_allocations(), 0);
 }
 
 }  // namespace

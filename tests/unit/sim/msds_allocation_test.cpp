@@ -3,38 +3,9 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <new>
-
+#include "allocation_counter.hpp"
 #include "block_fixture.hpp"
 #include "ultrasim/sim/msds.hpp"
-
-namespace {
-// The calling thread's allocations while counting is on.
-thread_local bool t_counting = false;
-thread_local long t_allocations = 0;
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (t_counting) ++t_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) {
-  return operator new(size);
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-  std::free(p);
-}
 
 namespace ultrasim::sim {
 namespace {
@@ -49,11 +20,9 @@ long allocations_in_frames(MsdsEngine& engine, int frames, double first_depth_mm
   long allocations = 0;
   for (int frame = 0; frame < frames; ++frame) {
     const ProbeCollider probe = press(first_depth_mm + 0.5 * frame);
-    t_allocations = 0;
-    t_counting = true;
+    ::ultrasim::testing::start_counting_allocations();
     engine.step(&probe, 1.0 / 60);
-    t_counting = false;
-    allocations += t_allocations;
+    allocations += ::ultrasim::testing::stop_counting_allocations();
   }
   return allocations;
 }

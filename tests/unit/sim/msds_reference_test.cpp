@@ -61,6 +61,12 @@ MsdsSettings physical_masses() {
   return s;
 }
 
+// Half the explicit bound for this block: a stable step with physical masses.
+double half_the_stable_step(const Block& b, const MsdsSettings& s) {
+  return 0.5 * MsdsEngine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, s)
+                   .explicit_stable_time_step_s();
+}
+
 Eigen::VectorXd random_displacements(int node_count, double amplitude_mm) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> noise(-amplitude_mm, amplitude_mm);
@@ -134,9 +140,7 @@ void expect_matches_reference(const Block& b, const MsdsSettings& settings, doub
 TEST(MsdsReference, FreeVibrationFromRandomDisplacementsMatchesTheNaiveStep) {
   const Block b = make_block();
   const MsdsSettings s = physical_masses();
-  const double dt =
-      0.5 * MsdsEngine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, s)
-                .explicit_stable_time_step_s();
+  const double dt = half_the_stable_step(b, s);
   expect_matches_reference(b, s, dt, 60, nullptr, random_displacements(b.mesh.node_count(), 0.3));
 }
 
@@ -152,9 +156,7 @@ TEST(MsdsReference, PublishedStepWithScaledMassesMatchesTheNaiveStep) {
 TEST(MsdsReference, PressedByAProbeMatchesTheNaiveStepWithItsContacts) {
   const Block b = make_block();
   const MsdsSettings s = physical_masses();
-  const double dt =
-      0.5 * MsdsEngine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, s)
-                .explicit_stable_time_step_s();
+  const double dt = half_the_stable_step(b, s);
   // The published sphere, its lowest point 1.5 mm below the skin (z = 0).
   const ProbeCollider probe = ProbeCollider::sphere(
       SphereCollider::behind_face({2.0, 1.0, 1.5}, Eigen::Vector3d::UnitZ(), 15.0));
@@ -174,9 +176,7 @@ TEST(MsdsReference, AMeshNumberedInRandomOrderMatchesTheNaiveStep) {
   // No dense diagonal: every spring is loose.
   const Block b = renumbered(make_block());
   const MsdsSettings s = physical_masses();
-  const double dt =
-      0.5 * MsdsEngine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, s)
-                .explicit_stable_time_step_s();
+  const double dt = half_the_stable_step(b, s);
   expect_matches_reference(b, s, dt, 60, nullptr, random_displacements(b.mesh.node_count(), 0.3));
 }
 
@@ -184,9 +184,7 @@ TEST(MsdsReference, AGridWithAFewNodesRenumberedMatchesTheNaiveStep) {
   // Mostly diagonals, with the springs of the renumbered nodes loose.
   const Block b = renumbered(make_block(), 6);
   const MsdsSettings s = physical_masses();
-  const double dt =
-      0.5 * MsdsEngine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed, s)
-                .explicit_stable_time_step_s();
+  const double dt = half_the_stable_step(b, s);
   expect_matches_reference(b, s, dt, 60, nullptr, random_displacements(b.mesh.node_count(), 0.3));
 }
 

@@ -4,7 +4,7 @@
 #include <new>
 
 namespace {
-// Per thread: llvmpipe's worker threads are not the caller's allocations.
+// Per thread: other threads (llvmpipe's workers, a job system's) are not the caller's allocations.
 thread_local bool t_counting = false;
 thread_local long t_allocations = 0;
 }  // namespace
@@ -30,7 +30,7 @@ void operator delete[](void* p, std::size_t) noexcept {
   std::free(p);
 }
 
-namespace ultrasim::render::testing {
+namespace ultrasim::testing {
 
 void start_counting_allocations() {
   t_allocations = 0;
@@ -42,4 +42,4 @@ long stop_counting_allocations() {
   return t_allocations;
 }
 
-}  // namespace ultrasim::render::testing
+}  // namespace ultrasim::testing
