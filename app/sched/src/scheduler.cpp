@@ -58,12 +58,21 @@ Scheduler::Scheduler(const hal::Clock& clock, std::span<const TaskSpec> table,
 TickReport Scheduler::tick() {
   TickReport report;
   const hal::TimestampUs start_us = clock_.now_us();
+  // Time the mandatory tasks due later in this tick will need is not given to optional ones.
+  std::int64_t reserved_us = 0;
+  for (std::size_t i = slots_.size(); i-- > 0;) {
+    slots_[i].reserved_after_us = reserved_us;
+    if (slots_[i].spec.mandatory && ticks_ >= slots_[i].next_due_tick) {
+      reserved_us += slots_[i].spec.budget_us;
+    }
+  }
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     Slot& slot = slots_[i];
     if (ticks_ < slot.next_due_tick) continue;
     TaskStats& stats = stats_[i];
     const hal::TimestampUs task_start_us = clock_.now_us();
-    const std::int64_t time_left_us = settings_.frame_budget_us - (task_start_us - start_us);
+    const std::int64_t time_left_us =
+        settings_.frame_budget_us - (task_start_us - start_us) - slot.reserved_after_us;
     if (!slot.spec.mandatory && slot.spec.budget_us > time_left_us) {
       // Stays due: it is tried again next tick, and every skipped due tick is a slip.
       ++stats.slips;

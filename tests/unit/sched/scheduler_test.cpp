@@ -107,7 +107,7 @@ TEST(Scheduler, MandatoryTasksRunEvenWhenTheBudgetIsSpentAndTheMissIsCounted) {
   hal::ManualClock clock;
   FakeTask solve{&clock, 20'000, "solve"}, render{&clock, 3'000, "render"},
       optional{&clock, 10, "optional"};
-  const std::vector<TaskSpec> table{spec_for(solve, 0, 15'000, 0),
+  const std::vector<TaskSpec> table{spec_for(solve, 0, 12'000, 0),
                                     spec_for(render, 0, 4'000, 1, /*mandatory=*/true),
                                     spec_for(optional, 0, 100, 2)};
   Scheduler scheduler(clock, table, {60.0, 16'667});
@@ -118,8 +118,26 @@ TEST(Scheduler, MandatoryTasksRunEvenWhenTheBudgetIsSpentAndTheMissIsCounted) {
   EXPECT_EQ(r.duration_us, 23'000);
   EXPECT_TRUE(r.deadline_missed);
   EXPECT_EQ(scheduler.frame_stats().deadline_misses(), 1);
-  EXPECT_EQ(scheduler.find("solve")->overruns, 1);  // 20 ms against its 15 ms budget
+  EXPECT_EQ(solve.ticks.at(0).time_left_us, 16'667 - 4'000);  // the render's time is reserved
+  EXPECT_EQ(scheduler.find("solve")->overruns, 1);            // 20 ms against its 12 ms budget
   EXPECT_EQ(scheduler.find("render")->overruns, 0);
+}
+
+TEST(Scheduler, TheBudgetOfAMandatoryTaskStillToComeIsKeptForIt) {
+  hal::ManualClock clock;
+  FakeTask bscan{&clock, 3'000, "bscan"}, render{&clock, 6'000, "render"};
+  const std::vector<TaskSpec> table{spec_for(bscan, 0, 4'000, 1),
+                                    spec_for(render, 30, 7'000, 2, /*mandatory=*/true)};
+  Scheduler scheduler(clock, table, {60.0, 10'000});
+  // Tick 0: the render is due and keeps 7 ms of the 10; the 4 ms B-scan does not fit in 3.
+  scheduler.tick();
+  EXPECT_EQ(scheduler.find("bscan")->slips, 1);
+  EXPECT_EQ(scheduler.find("render")->runs, 1);
+  // Tick 1: the 30 Hz render is not due: the B-scan has the whole frame.
+  scheduler.tick();
+  EXPECT_EQ(scheduler.find("bscan")->runs, 1);
+  EXPECT_EQ(bscan.ticks.at(0).time_left_us, 10'000);
+  EXPECT_EQ(scheduler.frame_stats().deadline_misses(), 0);
 }
 
 TEST(Scheduler, PerTaskTimesAndFrameTimesAreAccounted) {

@@ -2,8 +2,9 @@
 
 // The fixed-budget frame scheduler, in the manner of ArduPilot's AP_Scheduler: a static task
 // table (rate, budget, priority), run once per tick in priority order while the frame's budget
-// lasts. A task that is due but does not fit in the time left is skipped, counted as a slip and
-// tried again on the next tick; a task that runs past its own budget is counted as an overrun.
+// lasts. A task that is due but does not fit in the time left (after reserving the budgets of
+// the mandatory tasks still to come, such as the render hand-off) is skipped, counted as a slip
+// and tried again on the next tick; a task that runs past its own budget is counted as an overrun.
 // The frame never waits for a late task: it trades work for latency, never latency for work.
 // Time comes only from the injected hal::Clock, so tests drive it with a ManualClock.
 
@@ -21,8 +22,9 @@ namespace ultrasim::sched {
 struct TaskTick {
   std::int64_t tick_index = 0;
   hal::TimestampUs tick_start_us = 0;
-  // Frame budget left when the task started (may be ≤ 0 for a mandatory task). A task that can
-  // stop early (sub-volume solves) spends at most min(its budget, this).
+  // Frame budget left when the task started, less the budgets of the mandatory tasks still to
+  // run this tick (may be ≤ 0 for a mandatory task). A task that can stop early (sub-volume
+  // solves) spends at most min(its budget, this).
   std::int64_t time_left_us = 0;
 };
 
@@ -89,6 +91,7 @@ class Scheduler {
     TaskSpec spec;
     std::int64_t period_ticks = 1;
     std::int64_t next_due_tick = 0;
+    std::int64_t reserved_after_us = 0;  // this tick: budgets of due mandatory tasks after it
   };
 
   const hal::Clock& clock_;
