@@ -187,6 +187,16 @@ TableSchema<sched::FrameBudgetSettings> frame_schema() {
   TableSchema<S> t;
   t.add(field("budget_us", &S::budget_us, IntegerIn<std::int64_t>{1'000, 1'000'000},
               "Time budget of one frame in microseconds (16667: one frame at 60 Hz)."));
+  t.add(field("simulation_budget_us", &S::simulation_budget_us,
+              IntegerIn<std::int64_t>{1, 1'000'000},
+              "Contact and deformation, us; runs every frame (an overrun is counted)."));
+  t.add(field("bscan_budget_us", &S::bscan_budget_us, IntegerIn<std::int64_t>{1, 1'000'000},
+              "B-scan, us; skipped (the last image held) when the frame has not this much left."));
+  t.add(field("view_budget_us", &S::view_budget_us, IntegerIn<std::int64_t>{1, 1'000'000},
+              "Mesh and vessel surfaces of the 3D view, us; skipped like the B-scan."));
+  t.add(field("render_budget_us", &S::render_budget_us, IntegerIn<std::int64_t>{1, 1'000'000},
+              "Drawing the screen, us; runs every frame, its time kept free of the skippable "
+              "tasks."));
   return t;
 }
 

@@ -6,6 +6,7 @@
 
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
+#include "ultrasim/kiosk/frame_loop.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
 #include "ultrasim/kiosk/session.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
@@ -80,6 +81,22 @@ Script compare_methods(const config::CaseScan& scan) {
   return script;
 }
 
+// The offscreen screen as the frame loop's renderer.
+class OffscreenFrameRenderer final : public FrameRenderer {
+ public:
+  OffscreenFrameRenderer(render::OffscreenDisplay& display, render::SceneRenderer& renderer)
+      : display_(display), renderer_(renderer) {}
+  void render(const Session& session, std::int64_t frame_index) override {
+    display_.begin_frame();
+    renderer_.draw(session.frame_input(frame_index));
+    display_.end_frame();
+  }
+
+ private:
+  render::OffscreenDisplay& display_;
+  render::SceneRenderer& renderer_;
+};
+
 Script make_script(const std::string& name, const config::CaseScan& scan, double depth_mm) {
   if (name == "sweep-press") return sweep_press(scan, depth_mm);
   if (name == "compare-methods") return compare_methods(scan);
@@ -115,7 +132,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
   report.slicer = session.slicer_name();
   const std::int64_t budget_us = settings.frame.budget_us;
-  report.frame = sched::FrameTimeStats(budget_us);
+  OffscreenFrameRenderer frame_renderer(display, renderer);
+  FrameLoop loop(session, frame_renderer, clock, settings.frame);
 
   // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
   // the session (and its screenshots) are the same on every run.
@@ -144,13 +162,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       }
       ++next_control;
     }
-    const hal::TimestampUs start = clock.now_us();
-    const FrameOutcome outcome = session.update(probe.latest(now));
-    const hal::TimestampUs rendered_from = clock.now_us();
-    display.begin_frame();
-    renderer.draw(session.frame_input(frame));
-    display.end_frame();
-    const hal::TimestampUs end = clock.now_us();
+    loop.run_frame(probe.latest(now));
+    const FrameOutcome& outcome = loop.outcome();
 
     report.frames += 1;
     report.poses_rejected += outcome.pose_rejected;
@@ -159,11 +172,6 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
     report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);
-    report.sim.record(outcome.sim_us);
-    report.slice.record(outcome.slice_us);
-    report.surfaces.record(outcome.surfaces_us);
-    report.render.record(end - rendered_from);
-    report.frame.record(end - start);
 
     // A marker is shown by the last frame at or before it: the next frame would be past it.
     while (next_marker < markers.size() && markers[next_marker].first < now + budget_us) {
@@ -184,6 +192,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     script_clock.advance_us(budget_us);
   }
 
+  report.frame = loop.scheduler().frame_stats();
+  report.tasks.assign(loop.scheduler().task_stats().begin(), loop.scheduler().task_stats().end());
   const auto report_path = options.out_dir / "report.json";
   write_report_json(report_path, report);
   return report_path;

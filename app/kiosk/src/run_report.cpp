@@ -50,14 +50,15 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"poses_rejected\": " << r.poses_rejected << ",\n"
       << "  \"frame_time\": ";
   write_stats(out, r.frame);
-  out << ",\n  \"stages\": {\n    \"sim\": ";
-  write_stats(out, r.sim);
-  out << ",\n    \"bscan\": ";
-  write_stats(out, r.slice);
-  out << ",\n    \"surfaces\": ";
-  write_stats(out, r.surfaces);
-  out << ",\n    \"render\": ";
-  write_stats(out, r.render);
+  // Per task: its run times against its own budget, and what the scheduler did with it.
+  out << ",\n  \"tasks\": {";
+  for (std::size_t i = 0; i < r.tasks.size(); ++i) {
+    const sched::TaskStats& t = r.tasks[i];
+    out << (i ? ",\n    " : "\n    ") << quoted(std::string(t.name)) << ": {\"runs\": " << t.runs
+        << ", \"slips\": " << t.slips << ", \"overruns\": " << t.overruns << ", \"time\": ";
+    write_stats(out, t.time);
+    out << "}";
+  }
   out << "\n  },\n  \"snapshots\": [";
   for (std::size_t i = 0; i < r.snapshots.size(); ++i) {
     const Snapshot& s = r.snapshots[i];

@@ -71,6 +71,7 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       structures_(tissue.structures) {
   switch_method(settings.sim.method);
   rebuild_image_pipeline();
+  update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
 }
 
 void Session::switch_method(sim::EngineKind method) {
@@ -137,6 +138,20 @@ void Session::set_controls(const BscanControls& c) {
 }
 
 FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
+  const hal::TimestampUs t0 = clock_.now_us();
+  FrameOutcome outcome = simulate(sample);
+  const hal::TimestampUs t1 = clock_.now_us();
+  update_bscan();
+  const hal::TimestampUs t2 = clock_.now_us();
+  update_view();
+  const hal::TimestampUs t3 = clock_.now_us();
+  outcome.sim_us = t1 - t0;
+  outcome.slice_us = t2 - t1;
+  outcome.surfaces_us = t3 - t2;
+  return outcome;
+}
+
+FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample) {
   FrameOutcome outcome;
   if (sample && sample->health == hal::PoseHealth::kOk && hal::is_valid(*sample)) {
     pose_ = sample;
@@ -156,9 +171,10 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;
   outcome.in_contact = in_contact_;
-  const hal::TimestampUs t1 = clock_.now_us();
+  return outcome;
+}
 
-  const auto deformed = engine_->deformed_positions_mm();
+void Session::update_bscan() {
   if (controls_.frozen) {
     // The image holds still, as a frozen scanner's does; the tissue keeps following the probe.
   } else if (in_contact_) {
@@ -168,7 +184,7 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
     if (fast_slicer_ || published_slicer_) {
       slice_in_parallel(probe);
     } else {
-      locator_.rebuild(deformed);
+      locator_.rebuild(engine_->deformed_positions_mm());
       auto& target = scan_converter_ ? acquired_ : bscan_;
       imaging::slice_deformed_reference(tissue_.volume, tissue_.mesh, locator_, probe,
                                         acquisition_grid_, settings_.bscan, target);
@@ -181,18 +197,16 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
     std::fill(bscan_.begin(), bscan_.end(),
               static_cast<std::uint8_t>(settings_.bscan.background_grey));
   }
+}
+
+void Session::update_view() {
+  const auto deformed = engine_->deformed_positions_mm();
   for (std::size_t n = 0; n < deformed.size(); ++n) {
     for (int a = 0; a < 3; ++a) node_positions_[3 * n + a] = static_cast<float>(deformed[n][a]);
     node_displacement_[n] =
         static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
   }
-  const hal::TimestampUs t2 = clock_.now_us();
   structures_.update(deformed, jobs_);
-  const hal::TimestampUs t3 = clock_.now_us();
-  outcome.sim_us = t1 - t0;
-  outcome.slice_us = t2 - t1;
-  outcome.surfaces_us = t3 - t2;
-  return outcome;
 }
 
 void Session::slice_in_parallel(const imaging::ProbePose& probe) {

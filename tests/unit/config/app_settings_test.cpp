@@ -38,6 +38,10 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.corotational.max_inverted_fraction, b.corotational.max_inverted_fraction);
   EXPECT_EQ(a.collider.radius_mm, b.collider.radius_mm);
   EXPECT_EQ(a.frame.budget_us, b.frame.budget_us);
+  EXPECT_EQ(a.frame.simulation_budget_us, b.frame.simulation_budget_us);
+  EXPECT_EQ(a.frame.bscan_budget_us, b.frame.bscan_budget_us);
+  EXPECT_EQ(a.frame.view_budget_us, b.frame.view_budget_us);
+  EXPECT_EQ(a.frame.render_budget_us, b.frame.render_budget_us);
 }
 
 std::string read_file(const std::filesystem::path& path) {
@@ -93,6 +97,10 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.corotational.max_inverted_fraction = 0.0125;
   changed.collider.radius_mm = 12.5;
   changed.frame.budget_us = 33'333;
+  changed.frame.simulation_budget_us = 7'000;
+  changed.frame.bscan_budget_us = 2'500;
+  changed.frame.view_budget_us = 300;
+  changed.frame.render_budget_us = 20'000;
   expect_same(parse_app_settings(format_app_toml(changed), "formatted.toml"), changed);
 }
 

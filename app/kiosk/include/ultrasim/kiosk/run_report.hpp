@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "ultrasim/sched/frame_time_stats.hpp"
+#include "ultrasim/sched/scheduler.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -39,11 +40,8 @@ struct RunReport {
   std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
   int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;
-  sched::FrameTimeStats frame{0};
-  sched::FrameTimeStats sim{0};
-  sched::FrameTimeStats slice{0};
-  sched::FrameTimeStats surfaces{0};
-  sched::FrameTimeStats render{0};
+  sched::FrameTimeStats frame{0};       // whole frames against the frame budget
+  std::vector<sched::TaskStats> tasks;  // the frame loop's tasks, in the order they run
   std::vector<Snapshot> snapshots;
 };
 

@@ -58,13 +58,22 @@ class Session {
   // pose the probe counts as lifted). Does not allocate.
   FrameOutcome update(const std::optional<hal::PoseSample>& sample);
 
+  // update() in its three stages, for a frame scheduler that may skip the last two when the
+  // frame has no time left for them (the screen then shows their previous results):
+  // 1. the sample, contact and deformation (as update(); stage times left 0);
+  FrameOutcome simulate(const std::optional<hal::PoseSample>& sample);
+  // 2. the B-scan through the deformed tissue: held when frozen, blank when the probe is off;
+  void update_bscan();
+  // 3. what the 3D view draws of the tissue: mesh nodes and vessel surfaces.
+  void update_view();
+
   // The controls in force, and changing them. Values out of their ranges are refused with
   // std::invalid_argument naming the control (nothing changes). Allocates when the depth
   // changes (the image grid is rebuilt); call between frames, from the frame thread.
   const BscanControls& controls() const { return controls_; }
   void set_controls(const BscanControls& controls);
 
-  // Views of this frame's results for the renderer, valid until the next update().
+  // Views of the latest results for the renderer, valid until the next update() or stage.
   render::FrameInput frame_input(std::int64_t frame_index) const;
 
   std::span<const std::uint8_t> bscan() const { return bscan_; }

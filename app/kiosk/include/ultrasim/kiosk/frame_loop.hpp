@@ -1,0 +1,64 @@
+#pragma once
+
+// The kiosk's frame as scheduled work: a static task table over one Session and the screen, run
+// by sched::Scheduler inside the frame budget ([frame] in app.toml). The simulation and the
+// drawing run every frame; the B-scan and the 3D view's tissue run when the frame has time left
+// for them, and otherwise the screen shows their last results (counted as slips). The frame
+// never waits: it trades freshness for latency.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+
+#include "ultrasim/hal/clock.hpp"
+#include "ultrasim/hal/pose_sample.hpp"
+#include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/sched/scheduler.hpp"
+#include "ultrasim/sched/settings.hpp"
+
+namespace ultrasim::kiosk {
+
+// Draws one frame from the session's latest results (the display back end's job).
+class FrameRenderer {
+ public:
+  virtual ~FrameRenderer() = default;
+  virtual void render(const Session& session, std::int64_t frame_index) = 0;
+};
+
+class FrameLoop {
+ public:
+  // Task names, as in the stats and the run report.
+  static constexpr const char* kSimulation = "simulation";
+  static constexpr const char* kBscan = "bscan";
+  static constexpr const char* kView = "view";
+  static constexpr const char* kRender = "render";
+
+  // `session`, `renderer` and `clock` must outlive the loop. Allocates.
+  FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
+            const sched::FrameBudgetSettings& budgets);
+  FrameLoop(const FrameLoop&) = delete;
+  FrameLoop& operator=(const FrameLoop&) = delete;
+
+  // One frame with the newest tracker sample: the tasks that fit, in order. From the frame
+  // thread. Does not allocate (beyond what the session and renderer do).
+  sched::TickReport run_frame(const std::optional<hal::PoseSample>& sample);
+
+  // What the simulation did this frame.
+  const FrameOutcome& outcome() const { return outcome_; }
+  const sched::Scheduler& scheduler() const { return scheduler_; }
+
+ private:
+  static void simulate(void* self, const sched::TaskTick& tick);
+  static void bscan(void* self, const sched::TaskTick& tick);
+  static void view(void* self, const sched::TaskTick& tick);
+  static void render(void* self, const sched::TaskTick& tick);
+  std::array<sched::TaskSpec, 4> table(const sched::FrameBudgetSettings& budgets);
+
+  Session& session_;
+  FrameRenderer& renderer_;
+  std::optional<hal::PoseSample> sample_;
+  FrameOutcome outcome_;
+  sched::Scheduler scheduler_;
+};
+
+}  // namespace ultrasim::kiosk

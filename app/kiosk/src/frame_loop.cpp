@@ -1,0 +1,44 @@
+#include "ultrasim/kiosk/frame_loop.hpp"
+
+namespace ultrasim::kiosk {
+
+FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
+                     const sched::FrameBudgetSettings& budgets)
+    : session_(session),
+      renderer_(renderer),
+      scheduler_(clock, table(budgets), {60.0, budgets.budget_us}) {}
+
+std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings& budgets) {
+  // Every task at the loop's rate; the order is the data flow (DESIGN.md §2).
+  return {{
+      {kSimulation, 0.0, budgets.simulation_budget_us, 0, true, &FrameLoop::simulate, this},
+      {kBscan, 0.0, budgets.bscan_budget_us, 1, false, &FrameLoop::bscan, this},
+      {kView, 0.0, budgets.view_budget_us, 2, false, &FrameLoop::view, this},
+      {kRender, 0.0, budgets.render_budget_us, 3, true, &FrameLoop::render, this},
+  }};
+}
+
+sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sample) {
+  sample_ = sample;
+  return scheduler_.tick();
+}
+
+void FrameLoop::simulate(void* self, const sched::TaskTick&) {
+  auto* loop = static_cast<FrameLoop*>(self);
+  loop->outcome_ = loop->session_.simulate(loop->sample_);
+}
+
+void FrameLoop::bscan(void* self, const sched::TaskTick&) {
+  static_cast<FrameLoop*>(self)->session_.update_bscan();
+}
+
+void FrameLoop::view(void* self, const sched::TaskTick&) {
+  static_cast<FrameLoop*>(self)->session_.update_view();
+}
+
+void FrameLoop::render(void* self, const sched::TaskTick& tick) {
+  auto* loop = static_cast<FrameLoop*>(self);
+  loop->renderer_.render(loop->session_, tick.tick_index);
+}
+
+}  // namespace ultrasim::kiosk

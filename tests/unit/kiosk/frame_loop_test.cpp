@@ -1,0 +1,107 @@
+// The kiosk's frame loop on the tiny case with a manual clock: every stage runs when the frame
+// has time; with no time left the B-scan and the view are skipped and hold their last results,
+// while the simulation and the drawing still run every frame.
+
+#include "ultrasim/kiosk/frame_loop.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "tiny_case.hpp"
+
+namespace ultrasim::kiosk {
+namespace {
+
+hal::PoseSample pose_at(double depth_mm) {
+  hal::PoseSample s;
+  s.position_mm = {0.0, 0.0, depth_mm};
+  return s;
+}
+
+// Records what each frame showed; drawing costs `cost_us` of manual time.
+class RecordingRenderer final : public FrameRenderer {
+ public:
+  RecordingRenderer(hal::ManualClock& clock, std::int64_t cost_us)
+      : clock_(clock), cost_us_(cost_us) {}
+  void render(const Session& session, std::int64_t frame_index) override {
+    const render::FrameInput frame = session.frame_input(frame_index);
+    showed_tissue.push_back(frame.bscan.in_contact);
+    node_positions_mm.assign(frame.mesh.node_positions_mm.begin(),
+                             frame.mesh.node_positions_mm.end());
+    max_node_displacement_mm = 0.0f;
+    for (float d : frame.mesh.node_displacement_mm) {
+      max_node_displacement_mm = std::max(max_node_displacement_mm, d);
+    }
+    clock_.advance_us(cost_us_);
+  }
+  std::vector<bool> showed_tissue;
+  std::vector<float> node_positions_mm;
+  float max_node_displacement_mm = 0.0f;
+
+ private:
+  hal::ManualClock& clock_;
+  std::int64_t cost_us_;
+};
+
+class FrameLoopTest : public ::testing::Test {
+ protected:
+  FrameLoopTest() : tissue_(load_tissue_case(files_.dir())) {
+    settings_.bscan.width_px = 64;
+    settings_.bscan.height_px = 64;
+  }
+  testing::TinyCase files_;
+  TissueCase tissue_;
+  config::AppSettings settings_;
+  hal::ManualClock clock_;
+  hal::InlineJobSystem jobs_;
+};
+
+TEST_F(FrameLoopTest, WithTimeEnoughEveryStageRunsEveryFrame) {
+  Session session(tissue_, settings_, clock_, jobs_);
+  RecordingRenderer renderer(clock_, 5'000);
+  FrameLoop loop(session, renderer, clock_, settings_.frame);
+  for (int f = 0; f < 10; ++f) {
+    const sched::TickReport r = loop.run_frame(pose_at(0.3 * f));
+    EXPECT_EQ(r.tasks_run, 4) << f;
+    EXPECT_FALSE(r.deadline_missed) << f;
+  }
+  EXPECT_TRUE(loop.outcome().in_contact);
+  EXPECT_TRUE(renderer.showed_tissue.back());
+  EXPECT_NEAR(renderer.max_node_displacement_mm, 2.7, 0.05);  // as SessionTest's press
+  for (const char* task :
+       {FrameLoop::kSimulation, FrameLoop::kBscan, FrameLoop::kView, FrameLoop::kRender}) {
+    ASSERT_NE(loop.scheduler().find(task), nullptr) << task;
+    EXPECT_EQ(loop.scheduler().find(task)->runs, 10) << task;
+    EXPECT_EQ(loop.scheduler().find(task)->slips, 0) << task;
+  }
+}
+
+TEST_F(FrameLoopTest, WithNoTimeLeftTheBscanAndViewHoldWhileSimulationAndDrawingGoOn) {
+  Session session(tissue_, settings_, clock_, jobs_);
+  RecordingRenderer renderer(clock_, 0);
+  sched::FrameBudgetSettings budgets = settings_.frame;
+  budgets.render_budget_us = budgets.budget_us;  // drawing reserves the whole frame
+  FrameLoop loop(session, renderer, clock_, budgets);
+  for (int f = 0; f < 10; ++f) loop.run_frame(pose_at(0.3 * f));
+  EXPECT_EQ(loop.scheduler().find(FrameLoop::kSimulation)->runs, 10);
+  EXPECT_EQ(loop.scheduler().find(FrameLoop::kRender)->runs, 10);
+  EXPECT_EQ(loop.scheduler().find(FrameLoop::kBscan)->slips, 10);
+  EXPECT_EQ(loop.scheduler().find(FrameLoop::kView)->slips, 10);
+  // The tissue is pressed, but the screen still shows the last B-scan and view it had: a blank
+  // image and the tissue at rest, never an uninitialised mesh.
+  EXPECT_TRUE(loop.outcome().in_contact);
+  EXPECT_GT(loop.outcome().sim.contact_force_n, 0.0);
+  EXPECT_FALSE(renderer.showed_tissue.back());
+  EXPECT_EQ(renderer.max_node_displacement_mm, 0.0f);
+  const auto& rest = tissue_.mesh.rest_positions_mm;
+  ASSERT_EQ(renderer.node_positions_mm.size(), 3 * rest.size());
+  for (std::size_t n = 0; n < rest.size(); ++n) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(renderer.node_positions_mm[3 * n + a], static_cast<float>(rest[n][a])) << n;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ultrasim::kiosk
