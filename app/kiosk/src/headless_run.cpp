@@ -129,6 +129,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.bscan_height_px = session.bscan_height_px();
   report.method = std::string(sim::engine_key(session.method()));
   report.threads = jobs.thread_count();
+  report.realtime = options.realtime;
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
   report.slicer = session.slicer_name();
   const std::int64_t budget_us = settings.frame.budget_us;

@@ -7,6 +7,7 @@
 
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/posix/monotonic_clock.hpp"
+#include "ultrasim/drivers/posix/realtime.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/kiosk/compression_study.hpp"
 #include "ultrasim/kiosk/headless_run.hpp"
@@ -36,6 +37,10 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "threads for the frame's parallel work (the kiosk: 2)")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  bool realtime = false;
+  app.add_flag("--realtime", realtime,
+               "frame threads SCHED_FIFO and pinned one per core, memory locked, where the OS "
+               "allows (what it refuses is reported, not fatal)");
   std::string study_csv, study_method = "exact";
   int study_frames = 1;
   double study_step_mm = 0.25, study_depth_mm = 15.0;
@@ -100,8 +105,23 @@ int main(int argc, char** argv) {
   }
   if (!config_path.empty()) options.app_config = config_path;
   try {
-    const ultrasim::drivers::posix::MonotonicClock clock;
-    ultrasim::drivers::posix::ThreadPool jobs(threads);
+    namespace posix = ultrasim::drivers::posix;
+    const posix::MonotonicClock clock;
+    const posix::RealtimeRequest request;
+    // The workers first: a thread starts with its creator's CPU mask, so the frame thread pins
+    // itself (as frame thread 0) only once they have chosen their own cores.
+    posix::ThreadPool jobs(threads, realtime ? &request : nullptr);
+    if (realtime) {
+      const std::string memory = posix::lock_process_memory(request);
+      options.realtime =
+          "memory " + (memory.empty() ? std::string("locked") : memory) +
+          "; thread 0: " + posix::describe(posix::make_this_thread_realtime(request, 0), request);
+    }
+    for (std::size_t i = 0; i < jobs.worker_realtime().size(); ++i) {
+      options.realtime += "; thread " + std::to_string(i + 1) + ": " +
+                          posix::describe(jobs.worker_realtime()[i], request);
+    }
+    if (realtime) std::cerr << "ultrasim-kiosk: realtime: " << options.realtime << "\n";
     const auto report = ultrasim::kiosk::run_headless(options, clock, jobs);
     std::cout << "ultrasim-kiosk: wrote " << report.string() << "\n";
     return 0;

@@ -38,6 +38,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"bscan\": {\"width_px\": " << r.bscan_width_px
       << ", \"height_px\": " << r.bscan_height_px << ", \"slicer\": " << quoted(r.slicer) << "},\n"
       << "  \"threads\": " << r.threads << ",\n"
+      << "  \"realtime\": " << quoted(r.realtime) << ",\n"
       << "  \"surface_triangles\": " << r.surface_triangles << ",\n"
       << "  \"sim\": {\"method\": " << quoted(r.method)
       << ", \"method_switches\": " << r.method_switches

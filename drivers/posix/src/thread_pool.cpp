@@ -1,13 +1,25 @@
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 
 #include <algorithm>
+#include <latch>
 
 namespace ultrasim::drivers::posix {
 
-ThreadPool::ThreadPool(int thread_count) {
+ThreadPool::ThreadPool(int thread_count, const RealtimeRequest* realtime) {
   const int workers = std::max(thread_count, 1) - 1;
   workers_.reserve(static_cast<std::size_t>(workers));
-  for (int i = 0; i < workers; ++i) workers_.emplace_back([this] { worker_loop(); });
+  if (realtime != nullptr) worker_realtime_.resize(static_cast<std::size_t>(workers));
+  std::latch set_up(workers);
+  for (int i = 0; i < workers; ++i) {
+    workers_.emplace_back([this, realtime, i, &set_up] {
+      if (realtime != nullptr) {
+        worker_realtime_[static_cast<std::size_t>(i)] = make_this_thread_realtime(*realtime, i + 1);
+      }
+      set_up.count_down();
+      worker_loop();
+    });
+  }
+  set_up.wait();  // worker_realtime_ is complete, and `set_up` outlives every use of it
 }
 
 ThreadPool::~ThreadPool() {

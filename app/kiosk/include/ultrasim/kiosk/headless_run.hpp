@@ -14,16 +14,19 @@ struct HeadlessRunOptions {
   std::optional<std::filesystem::path> app_config;  // app.toml; defaults when absent
   std::filesystem::path out_dir;                    // created if missing
   std::string script = "sweep-press";               // the scripted probe's motion
+  // How the frame threads run (realtime scheduling, pinning, locked memory), as the composition
+  // root set them up: copied into report.json.
+  std::string realtime = "not requested";
 };
 
 // Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's
 // controls: freeze, depth) plays through the case on a fixed virtual
-// frame clock (one frame per frame budget, so the output is deterministic); every frame is
-// simulated, sliced and rendered offscreen, and at each of the script's markers the B-scan and
-// the whole screen are written as PNGs. Writes report.json (frames, frame-time percentiles per
-// stage, deadline misses, contact force) into out_dir. `clock` measures how long work took;
-// `jobs` runs the frame's parallel work. Throws on bad input (naming the file); returns the
-// report's path.
+// frame clock (one frame per frame budget, so the probe's motion is deterministic); every frame
+// runs the frame loop (FrameLoop: simulated, sliced and rendered offscreen as time allows), and at
+// each of the script's markers the B-scan and the whole screen are written as PNGs. Writes
+// report.json (frames, frame-time percentiles, deadline misses, per-task stats of the frame
+// scheduler, contact force) into out_dir. `clock` measures how long work took; `jobs` runs the
+// frame's parallel work. Throws on bad input (naming the file); returns the report's path.
 std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock,
                                    hal::JobSystem& jobs);
 

@@ -30,6 +30,7 @@ struct RunReport {
   int bscan_height_px = 0;
   std::string method;  // deformation method at the start (engine_key)
   int threads = 1;
+  std::string realtime;  // how the frame threads were set up (HeadlessRunOptions::realtime)
   int surface_triangles = 0;
   std::string slicer;
   std::int64_t frames = 0;

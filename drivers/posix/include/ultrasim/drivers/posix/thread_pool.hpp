@@ -7,6 +7,7 @@
 #include <thread>
 #include <vector>
 
+#include "ultrasim/drivers/posix/realtime.hpp"
 #include "ultrasim/hal/job_system.hpp"
 
 namespace ultrasim::drivers::posix {
@@ -17,12 +18,16 @@ namespace ultrasim::drivers::posix {
 class ThreadPool final : public hal::JobSystem {
  public:
   // thread_count includes the calling thread: ThreadPool(2) starts one worker. Values < 1 → 1.
-  explicit ThreadPool(int thread_count);
+  // With `realtime`, worker i becomes frame thread i + 1 (make_this_thread_realtime) before the
+  // constructor returns; the caller is frame thread 0 and sets itself up.
+  explicit ThreadPool(int thread_count, const RealtimeRequest* realtime = nullptr);
   ~ThreadPool() override;
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   int thread_count() const override { return static_cast<int>(workers_.size()) + 1; }
+  // What each worker got of the realtime request (empty without one).
+  const std::vector<ThreadRealtime>& worker_realtime() const { return worker_realtime_; }
   void run(int task_count, void (*task)(void*, int), void* context) override;
 
  private:
@@ -30,6 +35,7 @@ class ThreadPool final : public hal::JobSystem {
   void drain();  // runs tasks of the current batch until none is left
 
   std::vector<std::thread> workers_;
+  std::vector<ThreadRealtime> worker_realtime_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
   std::uint64_t batch_ = 0;  // increments per run(); workers wait for a new one
