@@ -13,12 +13,6 @@
 namespace ultrasim::kiosk {
 namespace {
 
-hal::PoseSample pose_at(double depth_mm) {
-  hal::PoseSample s;
-  s.position_mm = {0.0, 0.0, depth_mm};
-  return s;
-}
-
 // Records what each frame showed; drawing costs `cost_us` of manual time.
 class RecordingRenderer final : public FrameRenderer {
  public:
@@ -44,18 +38,8 @@ class RecordingRenderer final : public FrameRenderer {
   std::int64_t cost_us_;
 };
 
-class FrameLoopTest : public ::testing::Test {
- protected:
-  FrameLoopTest() : tissue_(load_tissue_case(files_.dir())) {
-    settings_.bscan.width_px = 64;
-    settings_.bscan.height_px = 64;
-  }
-  testing::TinyCase files_;
-  TissueCase tissue_;
-  config::AppSettings settings_;
-  hal::ManualClock clock_;
-  hal::InlineJobSystem jobs_;
-};
+using FrameLoopTest = testing::TinyCaseTest;
+using testing::pose_at;
 
 TEST_F(FrameLoopTest, WithTimeEnoughEveryStageRunsEveryFrame) {
   Session session(tissue_, settings_, clock_, jobs_);

@@ -10,25 +10,8 @@
 namespace ultrasim::kiosk {
 namespace {
 
-hal::PoseSample pose_at(double depth_mm) {
-  hal::PoseSample s;
-  s.position_mm = {0.0, 0.0, depth_mm};
-  return s;
-}
-
-class SessionTest : public ::testing::Test {
- protected:
-  SessionTest() : tissue_(load_tissue_case(files_.dir())) {
-    settings_.bscan.width_px = 64;
-    settings_.bscan.height_px = 64;
-    settings_.fem.pcg_iterations_per_frame = 200;
-  }
-  testing::TinyCase files_;
-  TissueCase tissue_;
-  config::AppSettings settings_;
-  hal::ManualClock clock_;
-  hal::InlineJobSystem jobs_;
-};
+using SessionTest = testing::TinyCaseTest;
+using testing::pose_at;
 
 TEST_F(SessionTest, NoPoseYetMeansNoContactAndABlankImage) {
   Session session(tissue_, settings_, clock_, jobs_);

@@ -1,13 +1,21 @@
 #pragma once
 
 // A small case written to a temporary folder: a 20 mm cube of muscle with a soft "vein" ball,
-// fixed on its deepest face. Tests change case.toml to provoke errors.
+// fixed on its deepest face. Tests change case.toml to provoke errors. And a fixture with it
+// loaded.
+
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <string>
 
 #include "scratch_dir.hpp"
+#include "ultrasim/config/app_settings.hpp"
+#include "ultrasim/hal/clock.hpp"
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/hal/pose_sample.hpp"
 #include "ultrasim/imaging/metaimage.hpp"
+#include "ultrasim/kiosk/tissue_case.hpp"
 
 namespace ultrasim::kiosk::testing {
 
@@ -72,6 +80,29 @@ class TinyCase {
 
  private:
   ::ultrasim::testing::ScratchDir scratch_;
+};
+
+// The probe straight down over the tiny case's centre, its face `depth_mm` below the skin.
+inline hal::PoseSample pose_at(double depth_mm) {
+  hal::PoseSample s;
+  s.position_mm = {0.0, 0.0, depth_mm};
+  return s;
+}
+
+// A test with the tiny case loaded, small B-scans and a manual clock, for sessions and the
+// frame loop.
+class TinyCaseTest : public ::testing::Test {
+ protected:
+  TinyCaseTest() : tissue_(load_tissue_case(files_.dir())) {
+    settings_.bscan.width_px = 64;
+    settings_.bscan.height_px = 64;
+    settings_.fem.pcg_iterations_per_frame = 200;
+  }
+  TinyCase files_;
+  TissueCase tissue_;
+  config::AppSettings settings_;
+  hal::ManualClock clock_;
+  hal::InlineJobSystem jobs_;
 };
 
 }  // namespace ultrasim::kiosk::testing
