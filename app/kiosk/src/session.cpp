@@ -138,16 +138,9 @@ void Session::set_controls(const BscanControls& c) {
 }
 
 FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
-  const hal::TimestampUs t0 = clock_.now_us();
-  FrameOutcome outcome = simulate(sample);
-  const hal::TimestampUs t1 = clock_.now_us();
+  const FrameOutcome outcome = simulate(sample);
   update_bscan();
-  const hal::TimestampUs t2 = clock_.now_us();
   update_view();
-  const hal::TimestampUs t3 = clock_.now_us();
-  outcome.sim_us = t1 - t0;
-  outcome.slice_us = t2 - t1;
-  outcome.surfaces_us = t3 - t2;
   return outcome;
 }
 

@@ -30,9 +30,6 @@ struct FrameOutcome {
   bool pose_rejected = false;  // the sample was missing, unhealthy or non-finite: last good kept
   bool in_contact = false;     // the probe touches the tissue, so there is an image
   sim::EngineStepStats sim;
-  std::int64_t sim_us = 0;       // collision + deformation
-  std::int64_t slice_us = 0;     // B-scan synthesis and display mapping
-  std::int64_t surfaces_us = 0;  // vessel surfaces following the tissue
 };
 
 // The scanner's controls a trainee can change while scanning.
@@ -60,7 +57,7 @@ class Session {
 
   // update() in its three stages, for a frame scheduler that may skip the last two when the
   // frame has no time left for them (the screen then shows their previous results):
-  // 1. the sample, contact and deformation (as update(); stage times left 0);
+  // 1. the sample, contact and deformation;
   FrameOutcome simulate(const std::optional<hal::PoseSample>& sample);
   // 2. the B-scan through the deformed tissue: held when frozen, blank when the probe is off;
   void update_bscan();
