@@ -9,6 +9,7 @@
 #include "ultrasim/kiosk/frame_loop.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
 #include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/kiosk/soak_script.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/offscreen_display.hpp"
 #include "ultrasim/render/png_writer.hpp"
@@ -17,20 +18,6 @@
 namespace ultrasim::kiosk {
 
 namespace {
-
-// A change of the scanner's controls at a moment of the script, as a trainee's button press: the
-// freeze and depth controls, or (when `method` is set) the live switch of deformation method.
-struct ControlEvent {
-  hal::TimestampUs time_us;
-  bool frozen = false;
-  double depth_mm = 0.0;
-  std::optional<sim::EngineKind> method;
-};
-
-struct Script {
-  std::vector<drivers::sim_probe::Keyframe> keyframes;
-  std::vector<ControlEvent> controls;
-};
 
 // sweep-press: the probe's sweep and press over the case, then the controls: freeze, press again
 // while frozen (the image must hold while the tissue moves), unfreeze at a deeper setting.
@@ -97,11 +84,15 @@ class OffscreenFrameRenderer final : public FrameRenderer {
   render::SceneRenderer& renderer_;
 };
 
-Script make_script(const std::string& name, const config::CaseScan& scan, double depth_mm) {
-  if (name == "sweep-press") return sweep_press(scan, depth_mm);
-  if (name == "compare-methods") return compare_methods(scan);
-  throw std::invalid_argument("unknown script '" + name +
-                              "'; available: sweep-press, compare-methods");
+Script make_script(const HeadlessRunOptions& options, const config::CaseScan& scan,
+                   double depth_mm) {
+  if (options.script == "sweep-press") return sweep_press(scan, depth_mm);
+  if (options.script == "compare-methods") return compare_methods(scan);
+  if (options.script == "soak") {
+    return soak_script(scan, depth_mm, options.soak_seconds, options.soak_seed);
+  }
+  throw std::invalid_argument("unknown script '" + options.script +
+                              "'; available: sweep-press, compare-methods, soak");
 }
 
 }  // namespace
@@ -111,8 +102,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   const config::AppSettings settings =
       options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
   const TissueCase tissue = load_tissue_case(options.case_dir);
-  const Script script =
-      make_script(options.script, tissue.settings.scan, tissue.settings.probe.depth_mm);
+  const Script script = make_script(options, tissue.settings.scan, tissue.settings.probe.depth_mm);
   drivers::sim_probe::ScriptedProbe probe(script.keyframes);
 
   render::OffscreenDisplay display(settings.display);
@@ -146,6 +136,11 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   std::size_t next_control = 0;
   render::RgbaImage screen;
 
+  const std::int64_t frames_per_second = std::max<std::int64_t>(1, 1'000'000 / budget_us);
+  if (options.script == "soak") {
+    report.memory_baseline_frame = static_cast<std::int64_t>(kSoakWarmUpS * 1e6) / budget_us;
+  }
+
   // One frame past the script's end, so its last moment is shown too.
   const std::int64_t frame_count = probe.duration_us() / budget_us + 2;
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
@@ -165,6 +160,9 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     }
     loop.run_frame(probe.latest(now));
     const FrameOutcome& outcome = loop.outcome();
+    if (options.resident_memory_kib && frame % frames_per_second == 0) {
+      report.memory_kib.emplace_back(frame, options.resident_memory_kib());
+    }
 
     report.frames += 1;
     report.poses_rejected += outcome.pose_rejected;

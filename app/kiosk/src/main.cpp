@@ -7,6 +7,7 @@
 
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/posix/monotonic_clock.hpp"
+#include "ultrasim/drivers/posix/process_memory.hpp"
 #include "ultrasim/drivers/posix/realtime.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/kiosk/compression_study.hpp"
@@ -36,6 +37,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--threads", threads, "threads for the frame's parallel work (the kiosk: 2)")
       ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  app.add_option("--soak-seconds", options.soak_seconds,
+                 "length of --script soak's random session, virtual seconds (>= 6)")
+      ->capture_default_str();
+  app.add_option("--seed", options.soak_seed, "seed of --script soak's random session")
       ->capture_default_str();
   bool realtime = false;
   app.add_flag("--realtime", realtime,
@@ -122,6 +128,7 @@ int main(int argc, char** argv) {
                           posix::describe(jobs.worker_realtime()[i], request);
     }
     if (realtime) std::cerr << "ultrasim-kiosk: realtime: " << options.realtime << "\n";
+    options.resident_memory_kib = posix::resident_memory_kib;
     const auto report = ultrasim::kiosk::run_headless(options, clock, jobs);
     std::cout << "ultrasim-kiosk: wrote " << report.string() << "\n";
     return 0;

@@ -29,6 +29,13 @@ void write_stats(std::ostream& out, const sched::FrameTimeStats& s) {
 
 }  // namespace
 
+std::int64_t RunReport::memory_growth_kib() const {
+  for (const auto& [sample_frame, kib] : memory_kib) {
+    if (sample_frame >= memory_baseline_frame) return memory_kib.back().second - kib;
+  }
+  return 0;
+}
+
 void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   std::ostringstream out;
   out << "{\n"
@@ -68,7 +75,12 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
         << ", \"screen\": " << quoted(s.screen_png) << ", \"method\": " << quoted(s.method)
         << ", \"contact_force_n\": " << s.contact_force_n << "}";
   }
-  out << "\n  ]\n}\n";
+  out << "\n  ],\n  \"memory\": {\"baseline_frame\": " << r.memory_baseline_frame
+      << ", \"growth_kib\": " << r.memory_growth_kib() << ", \"samples_kib\": [";
+  for (std::size_t i = 0; i < r.memory_kib.size(); ++i) {
+    out << (i ? ", " : "") << "[" << r.memory_kib[i].first << ", " << r.memory_kib[i].second << "]";
+  }
+  out << "]}\n}\n";
 
   std::ofstream file(path);
   file << out.str();

@@ -1,6 +1,8 @@
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -17,6 +19,12 @@ struct HeadlessRunOptions {
   // How the frame threads run (realtime scheduling, pinning, locked memory), as the composition
   // root set them up: copied into report.json.
   std::string realtime = "not requested";
+  // script "soak": how long (virtual seconds) and its random session's seed.
+  double soak_seconds = 60.0;
+  std::uint64_t soak_seed = 1;
+  // The process's resident memory in KiB (an OS query the composition root injects), sampled
+  // once a second of the script into report.json; unset: not sampled.
+  std::function<std::int64_t()> resident_memory_kib;
 };
 
 // Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's

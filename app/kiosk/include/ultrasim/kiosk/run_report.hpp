@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ultrasim/sched/frame_time_stats.hpp"
@@ -44,6 +45,11 @@ struct RunReport {
   sched::FrameTimeStats frame{0};       // whole frames against the frame budget
   std::vector<sched::TaskStats> tasks;  // the frame loop's tasks, in the order they run
   std::vector<Snapshot> snapshots;
+  // Resident memory, KiB, once a second of the script: (frame, KiB). Growth: the last sample
+  // less the first taken after `memory_baseline_frame` (a warm-up), or 0.
+  std::vector<std::pair<std::int64_t, std::int64_t>> memory_kib;
+  std::int64_t memory_baseline_frame = 0;
+  std::int64_t memory_growth_kib() const;
 };
 
 // Writes the report as JSON (times in µs). Throws std::runtime_error naming the path on failure.
