@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "engine_scene.hpp"
+#include "median.hpp"
 #include "naive_msds.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -128,10 +129,7 @@ class RatioReporter : public benchmark::ConsoleReporter {
  private:
   double median(const std::string& name) const {
     const auto it = times_ms_.find(name);
-    if (it == times_ms_.end()) return 0.0;
-    std::vector<double> t = it->second;
-    std::ranges::sort(t);
-    return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
+    return it == times_ms_.end() ? 0.0 : bench::median(it->second);
   }
   std::map<std::string, std::vector<double>> times_ms_;
 };

@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "median.hpp"
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/imaging/bscan.hpp"
@@ -296,10 +297,7 @@ class MedianReporter : public benchmark::ConsoleReporter {
   }
 
  private:
-  static double median(std::vector<double> t) {
-    std::ranges::sort(t);
-    return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
-  }
+  static double median(const std::vector<double>& t) { return bench::median(t); }
   std::map<std::string, std::vector<double>> times_ms_, best_ms_;
   std::vector<std::string> order_;
 };
