@@ -8,6 +8,7 @@
 #include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
 #include "ultrasim/kiosk/frame_loop.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
+#include "ultrasim/kiosk/script.hpp"
 #include "ultrasim/kiosk/session.hpp"
 #include "ultrasim/kiosk/soak_script.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
@@ -54,11 +55,8 @@ Script compare_methods(const config::CaseScan& scan) {
   script.keyframes = {{at(0.0), middle - 5.0 * down, level, ""},
                       {at(0.5), middle, level, ""},
                       {at(1.5), middle + scan.press_depth_mm * down, level, ""}};
-  const sim::EngineKind order[] = {sim::EngineKind::kExactFem, sim::EngineKind::kPcgFem,
-                                   sim::EngineKind::kCorotationalFem,
-                                   sim::EngineKind::kMsdsExplicit, sim::EngineKind::kMsdsImplicit};
   double t = 1.5;
-  for (const auto method : order) {
+  for (const auto method : kLiveMethods) {
     script.controls.push_back({at(t), false, 0.0, method});
     t += 1.0;
     script.keyframes.push_back(

@@ -20,11 +20,6 @@ hal::TimestampUs at(double seconds) {
   return static_cast<hal::TimestampUs>(seconds * 1e6);
 }
 
-// The methods a trainee can switch between live (the hyperelastic reference takes seconds).
-constexpr sim::EngineKind kLiveMethods[] = {
-    sim::EngineKind::kExactFem, sim::EngineKind::kPcgFem, sim::EngineKind::kCorotationalFem,
-    sim::EngineKind::kMsdsExplicit, sim::EngineKind::kMsdsImplicit};
-
 }  // namespace
 
 Script soak_script(const config::CaseScan& scan, double depth_mm, double duration_s,

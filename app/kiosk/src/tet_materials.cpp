@@ -10,6 +10,10 @@ namespace ultrasim::kiosk {
 
 namespace {
 
+// Divisions per edge of the barycentric lattice a tet is sampled at for kReuss:
+// (n + 1)(n + 2)(n + 3) / 6 = 84 points.
+constexpr int kTetSampleDivisions = 6;
+
 // Labels → materials, counting the tets whose label has none.
 class MaterialTable {
  public:

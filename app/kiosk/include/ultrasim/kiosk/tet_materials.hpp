@@ -12,16 +12,13 @@
 namespace ultrasim::kiosk {
 
 // Each tet's material from the label volume: the label at its centroid, or (kReuss) the Reuss
-// average of the labels at kTetSamples points spread evenly through it (sim::reuss_average).
+// average of the labels at the 84 points of a barycentric lattice through it (6 divisions per
+// edge; sim::reuss_average).
 // `materials` holds one entry per label; a label found in the mesh without one throws CaseError
 // naming `source` and the label. Allocates; start-up only.
 std::vector<sim::Material> tet_materials(const geometry::TetMesh& mesh,
                                          const imaging::Volume<std::uint8_t>& labels,
                                          std::span<const sim::Material> materials,
                                          sim::MaterialMixing mixing, const std::string& source);
-
-// Points a tet is sampled at for kReuss: the barycentric lattice with 6 divisions per edge.
-inline constexpr int kTetSampleDivisions = 6;
-inline constexpr int kTetSamples = 84;  // (n + 1)(n + 2)(n + 3) / 6
 
 }  // namespace ultrasim::kiosk

@@ -1,0 +1,34 @@
+#pragma once
+
+// A scripted session for headless runs: the probe's keyframed motion and the trainee's control
+// changes along it.
+
+#include <optional>
+#include <vector>
+
+#include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
+#include "ultrasim/sim/settings.hpp"
+
+namespace ultrasim::kiosk {
+
+// A change of the scanner's controls at a moment of a script, as a trainee's button press: the
+// freeze and depth controls, or (when `method` is set) the live switch of deformation method.
+struct ControlEvent {
+  hal::TimestampUs time_us = 0;
+  bool frozen = false;
+  double depth_mm = 0.0;
+  std::optional<sim::EngineKind> method;
+};
+
+struct Script {
+  std::vector<drivers::sim_probe::Keyframe> keyframes;
+  std::vector<ControlEvent> controls;
+};
+
+// The methods a trainee can switch between live, the kiosk's default first (the hyperelastic
+// reference takes seconds a frame).
+inline constexpr sim::EngineKind kLiveMethods[] = {
+    sim::EngineKind::kExactFem, sim::EngineKind::kPcgFem, sim::EngineKind::kCorotationalFem,
+    sim::EngineKind::kMsdsExplicit, sim::EngineKind::kMsdsImplicit};
+
+}  // namespace ultrasim::kiosk
