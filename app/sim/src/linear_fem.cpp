@@ -94,7 +94,9 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
     throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
   stiffness_ = assemble_stiffness(mesh, tet_materials);
-  inverse_diagonal_ = stiffness_.diagonal().cwiseInverse();
+  stiffness_diagonal_ = stiffness_.diagonal();
+  inverse_diagonal_ = stiffness_diagonal_.cwiseInverse();
+  anchor_stiffness_ = anchor_load_mn_ = Eigen::VectorXd::Zero(3 * n);
 
   u_ = Eigen::VectorXd::Zero(3 * n);
   free_mask_ = Eigen::VectorXd::Ones(3 * n);
@@ -120,7 +122,36 @@ void LinearFem::release_displacement(int node) {
 Eigen::Vector3d LinearFem::nodal_force_mn(int node) const {
   Eigen::Vector3d f;
   for (int i = 0; i < 3; ++i) f[i] = stiffness_.row(3 * node + i).dot(u_);
+  if (has_anchors_) {
+    f += anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node)) -
+         anchor_load_mn_.segment<3>(3 * node);
+  }
   return f;
+}
+
+void LinearFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
+  check_anchor_springs(anchors, node_count());
+  for (int node : anchored_nodes_) {
+    anchor_stiffness_.segment<3>(3 * node).setZero();
+    anchor_load_mn_.segment<3>(3 * node).setZero();
+    inverse_diagonal_.segment<3>(3 * node) =
+        stiffness_diagonal_.segment<3>(3 * node).cwiseInverse();
+  }
+  anchored_nodes_.clear();
+  for (const auto& a : anchors) {
+    // k (target − x) = k (target − rest) − k u: a load and a diagonal stiffness.
+    anchor_stiffness_.segment<3>(3 * a.node).setConstant(a.stiffness_mn_per_mm);
+    anchor_load_mn_.segment<3>(3 * a.node) = a.stiffness_mn_per_mm * (a.target_mm - rest_[a.node]);
+    inverse_diagonal_.segment<3>(3 * a.node) =
+        (stiffness_diagonal_.segment<3>(3 * a.node).array() + a.stiffness_mn_per_mm).inverse();
+    anchored_nodes_.push_back(a.node);
+  }
+  has_anchors_ = !anchored_nodes_.empty();
+}
+
+void LinearFem::system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) const {
+  out.noalias() = stiffness_ * p;
+  if (has_anchors_) out += anchor_stiffness_.cwiseProduct(p);
 }
 
 void LinearFem::apply_collider(const ProbeCollider* collider) {
@@ -166,12 +197,16 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
 
 FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
   FemStepStats stats;
-  // The free system is K_ff u_f = b with b = -K_fc u_c (no external loads): measure the residual
-  // against |b|, so a warm start that is already close does not make the tolerance stricter.
+  // The free system is (K + A)_ff u_f = b with b = f_A − K_fc u_c (A, f_A: the anchor springs'
+  // stiffness and load; no other external loads): measure the residual against |b|, so a warm
+  // start that is already close does not make the tolerance stricter.
   q_ = u_.cwiseProduct((1.0 - free_mask_.array()).matrix());
-  z_.noalias() = stiffness_ * q_;
+  system_times(q_, z_);
+  if (has_anchors_) z_ -= anchor_load_mn_;
   const double rhs_norm = z_.cwiseProduct(free_mask_).norm();
-  r_.noalias() = -(stiffness_ * u_);
+  system_times(u_, r_);
+  r_ = -r_;
+  if (has_anchors_) r_ += anchor_load_mn_;
   r_.array() *= free_mask_.array();
   // With nothing prescribed (probe lifted) the answer is rest and |b| = 0: measure progress
   // against where this frame started instead.
@@ -182,7 +217,7 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
   double residual = r_.norm();
   int it = 0;
   while (it < max_iterations && residual > tolerance * reference) {
-    q_.noalias() = stiffness_ * p_;
+    system_times(p_, q_);
     q_.array() *= free_mask_.array();
     const double pq = p_.dot(q_);
     if (!(pq > 0)) break;  // converged to rounding or the system lost definiteness

@@ -254,16 +254,53 @@ void MsdsEngine::scale_masses_to_time_step() {
         "MsdsSettings: time_step_s must be below damping_per_stiffness_s for explicit Euler to be "
         "stable at any mass");
   }
-  const std::vector<double> rows =
+  gershgorin_row_mn_per_mm_ =
       gershgorin_row_sums(rest_, springs_, std::span(pinned_).first(rest_.size()));
+  stable_omega_squared_ = omega_squared_max;
+  physical_mass_kg_ = mass_kg_;
   double physical = 0.0, scaled = 0.0;
   for (std::size_t i = 0; i < mass_kg_.size(); ++i) {
     if (pinned_[i]) continue;
     physical += mass_kg_[i];
-    mass_kg_[i] = std::max(mass_kg_[i], rows[i] / omega_squared_max);
+    mass_kg_[i] = std::max(mass_kg_[i], gershgorin_row_mn_per_mm_[i] / omega_squared_max);
     scaled += mass_kg_[i];
   }
   mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+}
+
+void MsdsEngine::set_anchor_springs(std::span<const AnchorSpring> anchors) {
+  check_anchor_springs(anchors, node_count());
+  for (const auto& a : anchors_) anchor_stiffness_mn_per_mm_[a.node] = 0.0;
+  anchors_.assign(anchors.begin(), anchors.end());
+  for (const auto& a : anchors_) anchor_stiffness_mn_per_mm_[a.node] = a.stiffness_mn_per_mm;
+  if (physical_mass_kg_.empty()) return;
+  // A node's stable step depends on its total stiffness: an anchor (with its damping, like a
+  // spring's) adds k to its Gershgorin row. Only nodes whose anchor changed are rescaled.
+  bool changed = false;
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i] || mass_scaled_for_anchor_mn_per_mm_[i] == anchor_stiffness_mn_per_mm_[i]) {
+      continue;
+    }
+    rescale_anchored_mass(i, anchor_stiffness_mn_per_mm_[i]);
+    changed = true;
+  }
+  if (!changed) return;
+  double physical = 0.0, scaled = 0.0;
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i]) continue;
+    physical += physical_mass_kg_[i];
+    scaled += mass_kg_[i];
+  }
+  mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+}
+
+void MsdsEngine::rescale_anchored_mass(int node, double anchor_stiffness_mn_per_mm) {
+  mass_kg_[node] = std::max(
+      physical_mass_kg_[node],
+      (gershgorin_row_mn_per_mm_[node] + anchor_stiffness_mn_per_mm) / stable_omega_squared_);
+  padded_mass_kg_[node] = mass_kg_[node];
+  inverse_mass_per_kg_[node] = 1.0 / mass_kg_[node];
+  mass_scaled_for_anchor_mn_per_mm_[node] = anchor_stiffness_mn_per_mm;
 }
 
 void MsdsEngine::build_adjacency() {
@@ -320,6 +357,8 @@ void MsdsEngine::size_buffers() {
   held_.assign(padded, 0);
   touching_only_.assign(rest_.size(), 0);
   contact_normal_.assign(rest_.size(), Eigen::Vector3d::UnitZ());
+  anchor_stiffness_mn_per_mm_.assign(rest_.size(), 0.0);
+  mass_scaled_for_anchor_mn_per_mm_.assign(rest_.size(), 0.0);
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
     spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
     spring_damping_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
@@ -713,6 +752,10 @@ void MsdsEngine::gather_node_forces(int node, Eigen::Vector3d& elastic_mn,
     elastic_mn += s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir;
     damping_mn += s.damping_mn_s_per_mm * (velocity_[other] - velocity_[node]).dot(dir) * dir;
   }
+  Eigen::Vector3d anchor_elastic, anchor_damping;
+  anchor_force(node, anchor_elastic, anchor_damping);
+  elastic_mn += anchor_elastic;
+  damping_mn += anchor_damping;
 }
 
 double MsdsEngine::contact_force_n() const {
@@ -766,6 +809,7 @@ void MsdsEngine::explicit_euler_task(int task, double dt_s) {
     const int begin = block * kNodesPerChunk;
     const int end = std::min(node_count(), begin + kNodesPerChunk);
     k.lattice.block_forces(sweep, state, begin, end, force_x, force_y, force_z);
+    if (!anchors_.empty()) add_anchor_forces(begin, end, force_x, force_y, force_z);
     settle_contacts(begin, end, force_x, force_y, force_z);
     // Forward Euler, as published: both updates use the state at the start of the step; the
     // position advances with the old velocity and the velocity with the old state's force.
@@ -788,6 +832,37 @@ void MsdsEngine::settle_contacts(int begin, int end, float* force_x, float* forc
     release_if_pulled_away(c->node, Eigen::Vector3d(force_x[i], force_y[i], force_z[i]));
     if (held_[c->node]) force_x[i] = force_y[i] = force_z[i] = 0.0f;
   }
+}
+
+void MsdsEngine::add_anchor_forces(int begin, int end, float* force_x, float* force_y,
+                                   float* force_z) const {
+  auto a =
+      std::lower_bound(anchors_.begin(), anchors_.end(), begin,
+                       [](const AnchorSpring& anchor, int node) { return anchor.node < node; });
+  for (; a != anchors_.end() && a->node < end; ++a) {
+    Eigen::Vector3d elastic, damping;
+    anchor_force(a->node, elastic, damping);
+    const Eigen::Vector3d f = elastic + damping;
+    const int i = a->node - begin;
+    force_x[i] += static_cast<float>(f.x());
+    force_y[i] += static_cast<float>(f.y());
+    force_z[i] += static_cast<float>(f.z());
+  }
+}
+
+void MsdsEngine::anchor_force(int node, Eigen::Vector3d& elastic_mn,
+                              Eigen::Vector3d& damping_mn) const {
+  const double k = anchor_stiffness_mn_per_mm_[node];
+  if (k == 0.0) {
+    elastic_mn.setZero();
+    damping_mn.setZero();
+    return;
+  }
+  const auto a =
+      std::lower_bound(anchors_.begin(), anchors_.end(), node,
+                       [](const AnchorSpring& anchor, int n) { return anchor.node < n; });
+  elastic_mn = k * (a->target_mm - position_[node]);
+  damping_mn = -k * settings_.damping_per_stiffness_s * velocity_[node];
 }
 
 double MsdsEngine::explicit_stable_time_step_s() const {
@@ -817,6 +892,9 @@ double MsdsEngine::elastic_energy_uj() const {
   for (const auto& s : springs_) {
     const double stretch = (position_[s.b] - position_[s.a]).norm() - s.rest_length_mm;
     energy += 0.5 * s.stiffness_mn_per_mm * stretch * stretch;
+  }
+  for (const auto& a : anchors_) {
+    energy += 0.5 * a.stiffness_mn_per_mm * (a.target_mm - position_[a.node]).squaredNorm();
   }
   return energy;
 }

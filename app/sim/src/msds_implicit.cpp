@@ -79,15 +79,19 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
       if (!pinned_[i]) {
         Eigen::Vector3d elastic, damping;
         sum_node_forces(i, elastic, damping);
-        release_if_pulled_away(i, elastic + damping);
+        Eigen::Vector3d anchor_elastic, anchor_damping;
+        anchor_force(i, anchor_elastic, anchor_damping);
+        elastic += anchor_elastic;
+        release_if_pulled_away(i, elastic + damping + anchor_damping);
         if (!held_[i]) {
-          Eigen::Vector3d diagonal = Eigen::Vector3d::Constant(mass_kg_[i]);
+          Eigen::Vector3d diagonal =
+              Eigen::Vector3d::Constant(mass_kg_[i] + anchor_system_diagonal(i, dt_s));
           for (int e = adjacency_begin_[i]; e < adjacency_begin_[i + 1]; ++e) {
             diagonal += spring_block_[adjacency_spring_[e]].diagonal();
           }
           inverse_diagonal_[i] = diagonal.cwiseInverse();
           rhs_[i] = mass_kg_[i] * cg_velocity_[i] + dt_s * elastic;
-          r_[i] = rhs_[i] - system_row_times(i, cg_velocity_);
+          r_[i] = rhs_[i] - system_row_times(i, cg_velocity_, dt_s);
           z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
           p_[i] = z_[i];
           rhs_squared += rhs_[i].squaredNorm();
@@ -120,7 +124,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
       double pq = 0.0;
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
       for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-        q_[i] = moves(i) ? system_row_times(i, p_) : Eigen::Vector3d::Zero();
+        q_[i] = moves(i) ? system_row_times(i, p_, dt_s) : Eigen::Vector3d::Zero();
         pq += p_[i].dot(q_[i]);
       }
       partial_a_[chunk] = pq;
@@ -166,10 +170,16 @@ MsdsEngine::ImplicitSpringBlock MsdsEngine::implicit_spring_block(const MsdsSpri
   return {h * spring.damping_mn_s_per_mm + k * (1.0 - transverse), k * transverse, dir};
 }
 
-Eigen::Vector3d MsdsEngine::system_row_times(int node,
-                                             const std::vector<Eigen::Vector3d>& p) const {
-  // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not.
-  Eigen::Vector3d sum = mass_kg_[node] * p[node];
+double MsdsEngine::anchor_system_diagonal(int node, double h) const {
+  const double k = anchor_stiffness_mn_per_mm_[node];
+  return h * k * settings_.damping_per_stiffness_s + h * h * k;
+}
+
+Eigen::Vector3d MsdsEngine::system_row_times(int node, const std::vector<Eigen::Vector3d>& p,
+                                             double h) const {
+  // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not. The anchor's row is
+  // (h c + h² k) I: its target is fixed within the step.
+  Eigen::Vector3d sum = (mass_kg_[node] + anchor_system_diagonal(node, h)) * p[node];
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
     sum += spring_block_[adjacency_spring_[e]].times(p[node] - p[adjacency_other_[e]]);
   }

@@ -2,6 +2,8 @@
 
 #include <Eigen/Core>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <string_view>
 
 #include "ultrasim/sim/probe_collider.hpp"
@@ -29,6 +31,15 @@ struct EngineStepStats {
   Recovery recovery = Recovery::kNone;
 };
 
+// A zero-length spring pulling one node toward a target point (volume stitching: the target is the
+// node's twin in the overlapping sub-volume). Damped like the tissue's springs: c = k × the
+// method's damping per stiffness, on the node's own velocity (dynamic methods only).
+struct AnchorSpring {
+  int node = 0;
+  Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
+  double stiffness_mn_per_mm = 0.0;
+};
+
 // One deformation method on one tet mesh. Units: mm, kPa, mN, seconds. Nodes flagged fixed stay
 // at rest. The frame thread owns it; step() does not allocate once warmed up (its largest
 // contact set seen).
@@ -51,6 +62,24 @@ class DeformationEngine {
   // Live switch: continue from another engine's displacement field, at rest (zero velocity).
   // Fixed nodes stay at zero whatever `u` says. `u` must have 3 × node count entries.
   virtual void set_displacements_mm(const Eigen::VectorXd& u_mm) = 0;
+
+  // Whether set_anchor_springs() works on this method: the MSDS and the PCG FEM add the springs
+  // to their systems; the exact FEM's factor, fixed at construction, cannot take them, nor do the
+  // corotational and hyperelastic solvers yet.
+  virtual bool supports_anchor_springs() const { return false; }
+  // Replaces the anchor springs, acting from the next step() on (none: an empty span). Nodes
+  // strictly increasing, inside the mesh; targets finite; stiffness finite and ≥ 0. Anchors on
+  // fixed nodes have no effect. Allocates only when there are more anchors than ever before (or,
+  // explicit MSDS with mass scaling, when a node's anchor stiffness changes: its mass is rescaled
+  // for the step to stay stable). Throws std::invalid_argument for bad anchors and
+  // std::logic_error where not supported.
+  virtual void set_anchor_springs(std::span<const AnchorSpring> /*anchors*/) {
+    throw std::logic_error(std::string(name()) + " cannot take anchor springs (volume stitching)");
+  }
 };
+
+// Checks anchors as set_anchor_springs() documents; throws std::invalid_argument naming the first
+// bad one.
+void check_anchor_springs(std::span<const AnchorSpring> anchors, int node_count);
 
 }  // namespace ultrasim::sim

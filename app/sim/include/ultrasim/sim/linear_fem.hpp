@@ -59,7 +59,12 @@ class LinearFem final : public DeformationEngine {
   // Warm start from this shape; the probe's contacts are found afresh at the next step.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
-  // Nodal forces K u on node n, mN: the reaction where the node is constrained, ~0 where free.
+  // Anchor springs: their stiffness joins K's diagonal and their pull the right-hand side.
+  bool supports_anchor_springs() const override { return true; }
+  void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
+
+  // Nodal forces K u (− the anchor's pull) on node n, mN: the reaction where the node is
+  // constrained, ~0 where free.
   Eigen::Vector3d nodal_force_mn(int node) const;
 
   // Deformed node positions (rest + displacement), mm; valid until the next step.
@@ -82,6 +87,8 @@ class LinearFem final : public DeformationEngine {
   FemStepStats run_pcg(int max_iterations, double tolerance);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();
+  // out = (K + A) p, A the anchor springs' diagonal stiffness.
+  void system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) const;
   void update_deformed();
 
   FemSettings settings_;
@@ -97,7 +104,12 @@ class LinearFem final : public DeformationEngine {
   Eigen::VectorXd last_good_u_;
   int fixed_count_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness_;
-  Eigen::VectorXd inverse_diagonal_;
+  Eigen::VectorXd stiffness_diagonal_;
+  Eigen::VectorXd inverse_diagonal_;  // of K + A
+  // Anchor springs: per DOF their stiffness (mN/mm) and k (target − rest) (mN).
+  Eigen::VectorXd anchor_stiffness_, anchor_load_mn_;
+  std::vector<int> anchored_nodes_;
+  bool has_anchors_ = false;
   // Per-step state and scratch, sized once.
   Eigen::VectorXd u_, free_mask_, r_, z_, p_, q_;
   std::vector<Eigen::Vector3d> deformed_;

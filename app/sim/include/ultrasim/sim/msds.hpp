@@ -153,6 +153,12 @@ class MsdsEngine final : public DeformationEngine {
   // std::invalid_argument when u_mm does not have 3 × node count entries or is not finite.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
+  // Anchor springs (volume stitching), both integrators: the explicit one adds their forces to
+  // the springs' in its float pass (and, with mass scaling, raises an anchored node's mass for
+  // its extra stiffness), the implicit one adds their stiffness and damping to its system.
+  bool supports_anchor_springs() const override { return true; }
+  void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
+
   // Runs `steps` integration steps of `dt_s` (with the probe's contact) and nothing else: no
   // divergence check, no recovery. For measuring stability limits in tests and benches.
   void integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps);
@@ -165,8 +171,9 @@ class MsdsEngine final : public DeformationEngine {
   // Total free mass over the physical one: > 1 when scale_mass_for_explicit_step raised masses.
   double mass_scale() const { return mass_scale_; }
 
-  // Spring + damping force on every node at the current state, mN, node-major x,y,z (pinned nodes
-  // included: there it is what holds them). Resizes `forces_mn`; serial; for tests and reports.
+  // Spring, anchor and damping force on every node at the current state, mN, node-major x,y,z
+  // (pinned nodes included: there it is what holds them). Resizes `forces_mn`; serial; for tests
+  // and reports.
   void internal_forces_mn(Eigen::VectorXd& forces_mn) const;
   double kinetic_energy_uj() const;
   double elastic_energy_uj() const;
@@ -267,8 +274,10 @@ class MsdsEngine final : public DeformationEngine {
   static ImplicitSpringBlock implicit_spring_block(const MsdsSpring& spring,
                                                    const Eigen::Vector3d& dir, double length_mm,
                                                    double h);
-  // Row `node` of (M + h C + h² K) times p.
-  Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p) const;
+  // Row `node` of (M + h C + h² K) times p, anchors included.
+  Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p, double h) const;
+  // The anchor's h c + h² k on the node's diagonal (0 without one).
+  double anchor_system_diagonal(int node, double h) const;
   StepResult finish_implicit_update(double dt_s);
   double contact_force_n() const;
   int held_node_count() const;
@@ -278,7 +287,13 @@ class MsdsEngine final : public DeformationEngine {
   // Refreshes the public views of the state: x_, v_ and u_.
   void publish_state();
 
-  // Spring + damping force on one node from its springs, at the current state (computed afresh).
+  // The anchor's elastic and damping force on a node (zero without one), at the current state.
+  void anchor_force(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
+  // Adds the anchors' forces on nodes [begin, end) to the explicit pass's float block forces.
+  void add_anchor_forces(int begin, int end, float* force_x, float* force_y, float* force_z) const;
+  // Explicit Euler with mass scaling: a node's mass for its springs' and anchor's stiffness.
+  void rescale_anchored_mass(int node, double anchor_stiffness_mn_per_mm);
+  // Spring (+ anchor) + damping force on one node, at the current state (computed afresh).
   void gather_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
   // Unit vector from node `from` to the spring's other node (the rest direction if collapsed),
   // and the spring's current length.
@@ -310,6 +325,16 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<double> inverse_mass_per_kg_;  // likewise; 0 on pinned nodes
   double kinetic_energy_ceiling_uj_ = 0.0;
   double mass_scale_ = 1.0;
+  // Mass scaling's inputs, kept for anchored nodes: physical masses, each node's Gershgorin row
+  // sum of its springs (mN/mm), the largest ω² the step is stable for (empty / 0 without scaling).
+  std::vector<double> physical_mass_kg_;
+  std::vector<double> gershgorin_row_mn_per_mm_;
+  double stable_omega_squared_ = 0.0;
+  // Anchor springs in node order, and per node its anchor's stiffness (0: none) and the stiffness
+  // its mass was last scaled for.
+  std::vector<AnchorSpring> anchors_;
+  std::vector<double> anchor_stiffness_mn_per_mm_;
+  std::vector<double> mass_scaled_for_anchor_mn_per_mm_;
   // Node → springs (CSR), each entry with the spring's other node, in spring order.
   std::vector<int> adjacency_begin_;
   std::vector<int> adjacency_spring_;

@@ -1,0 +1,173 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/settings.hpp"
+#include "ultrasim/sim/sub_volume_split.hpp"
+
+namespace ultrasim::sim {
+
+// How a large region is split and stitched.
+struct StitchingSettings {
+  // Sub-volumes along x, y, z (the published 5 × 5 × 1).
+  Eigen::Vector3i sub_volumes = Eigen::Vector3i(5, 5, 1);
+  // Node layers neighbours share (published: 2; one shared layer would let the seam kink).
+  int overlap_nodes = 2;
+  // Zero-length spring between the copies of a shared node, per unit Young's modulus of the
+  // stiffest tet at the node, mm (kPa × mm = mN/mm). Stiffer: a smaller gap between the copies
+  // (the gap is the seam's force over this), and for the explicit MSDS heavier overlap nodes.
+  double spring_stiffness_per_modulus_mm = 20.0;
+  // The cells neighbours share are meshed in each of them: tied together, the copies are as stiff
+  // as all of them in parallel, and the seam band is that many times too stiff (the published
+  // split; ~8 % displacement error across a seam under the probe). true: each copy of a shared
+  // tet gets 1 / copies of its Young's modulus, so the tied copies add up to the tissue's
+  // stiffness. Masses are not split: the static answer does not depend on them.
+  bool split_overlap_stiffness = true;
+  // Selective simulation (published §5.2): each frame only the sub-volumes the probe may touch,
+  // their neighbours and extra_sub_volumes_per_frame others, those pulled hardest by their seams
+  // first. false: every sub-volume every frame.
+  bool selective = true;
+  int extra_sub_volumes_per_frame = 1;
+  // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
+  // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
+  double sleep_force_mn = 0.05;
+  double sleep_motion_mm = 1e-4;
+};
+
+// What a stitched frame did, beyond the engine's stats.
+struct StitchStepStats {
+  int sub_volumes_stepped = 0;
+  int sub_volumes_touched = 0;     // within the probe's reach (always stepped)
+  int sub_volumes_asleep = 0;      // after the frame
+  int sub_volumes_deferred = 0;    // due but left for a later frame (selection or budget)
+  double max_seam_force_mn = 0.0;  // largest zero-length spring force after the frame
+  double max_gap_mm = 0.0;         // largest distance between copies of a shared node
+};
+
+// Volume stitching (published ch. 5): a region meshed as one grid, split into overlapping
+// sub-volumes (split_grid), each simulated by its own engine of any method that takes anchor
+// springs (MSDS explicit or implicit, PCG FEM). The copies of a shared node are joined by
+// zero-length springs of stiffness k, acting on each copy as one anchor spring: stiffness
+// k × (copies − 1) toward the mean of the other copies, the same force as the pairwise springs.
+// A frame alternates as published: every stepped sub-volume first takes its anchors from the
+// others' current positions (all at once, so the sub-volumes step in parallel on the job system,
+// one sub-volume per task), then steps. The region shows each shared node at the mean of its
+// copies (the published midpoint fix), so no gap shows; the gap before that is reported.
+//
+// As a DeformationEngine it is one engine on the whole grid's mesh: positions, displacements and
+// the live switch are on the grid's nodes. Units as the engines'. The frame thread owns it; step()
+// does not allocate once warmed up.
+class StitchedVolume final : public DeformationEngine {
+ public:
+  // The region: the grid (meshed with make_grid_tet_mesh), a material per grid tet, fixed-node
+  // flags per grid node. `jobs`, if given, must outlive the volume. Throws std::invalid_argument
+  // for a split that does not fit, a method that cannot take anchor springs, or the engines'
+  // own reasons (a sub-volume with no fixed node, for one: each must be held somewhere).
+  StitchedVolume(const geometry::GridSpec& grid, std::span<const Material> tet_materials,
+                 std::span<const std::uint8_t> fixed_nodes, EngineKind method,
+                 const EngineSettings& engine_settings, const StitchingSettings& stitching,
+                 hal::JobSystem* jobs = nullptr);
+  ~StitchedVolume() override;
+  StitchedVolume(const StitchedVolume&) = delete;
+  StitchedVolume& operator=(const StitchedVolume&) = delete;
+
+  EngineKind kind() const override { return method_; }
+  std::string_view name() const override { return name_; }
+  // A frame of every due sub-volume; see step_within().
+  EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  // The same, in priority order: the sub-volumes the probe may touch (always), then the rest due
+  // this frame, those pulled hardest by their seams first, in batches of one per job thread while
+  // may_continue() says there is time (an empty function: no limit). Stats: the sum of the
+  // sub-volumes' iterations, contact nodes and contact forces' magnitudes, the most inverted
+  // tets of one, diverged if any did, and the strongest recovery.
+  EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                              const std::function<bool()>& may_continue);
+  const Eigen::VectorXd& displacements_mm() const override { return u_; }
+  std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return shown_; }
+  // Every sub-volume continues from the grid's field (copies of a shared node alike), awake.
+  void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
+
+  const StitchStepStats& last_stitch_stats() const { return stats_; }
+  const geometry::TetMesh& mesh() const { return mesh_; }
+  int sub_volume_count() const { return static_cast<int>(subs_.size()); }
+  const SubVolumeBox& box(int sub) const { return subs_[sub].box; }
+  const DeformationEngine& sub_volume_engine(int sub) const { return *subs_[sub].engine; }
+  bool asleep(int sub) const { return subs_[sub].asleep; }
+  // Whether the last frame stepped the sub-volume.
+  bool stepped(int sub) const { return subs_[sub].stepped; }
+
+ private:
+  struct SubVolume {
+    SubVolumeBox box;
+    std::unique_ptr<DeformationEngine> engine;
+    std::vector<int> global_node;  // per local node
+    // Shared local nodes (in node order) and, per entry, the grid node it copies.
+    std::vector<int> shared_local;
+    std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
+    std::vector<Eigen::Vector3d> previous_positions_mm;
+    Eigen::Vector3d box_center_mm = Eigen::Vector3d::Zero();
+    double box_half_diagonal_mm = 0.0;
+    double max_seam_force_mn = 0.0;
+    double last_motion_mm = 0.0;
+    int frames_waiting = 0;  // since it last stepped
+    bool asleep = false;
+    bool stepped = false;
+    bool touched = false;
+    EngineStepStats last_stats;
+  };
+  // A copy of a grid node: the sub-volume and its local node.
+  struct Copy {
+    int sub = 0;
+    int local = 0;
+  };
+
+  void build_sub_volumes(std::span<const Material> tet_materials,
+                         std::span<const std::uint8_t> fixed_nodes, EngineKind method,
+                         const EngineSettings& engine_settings, hal::JobSystem* jobs);
+  void build_copies(std::span<const Material> tet_materials);
+  // The order this frame's sub-volumes step in (schedule_), touched ones first; returns how many
+  // of them are touched.
+  int plan_frame(const ProbeCollider* probe);
+  // Order among the due sub-volumes not touched: seam pull × (1 + frames waited).
+  double priority(int sub) const;
+  void refresh_anchors(int sub);
+  void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s);
+  // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
+  // shown positions (copies' mean) and displacements.
+  void finish_frame();
+  Eigen::Vector3d copy_position(const Copy& c) const;
+
+  geometry::GridSpec grid_;
+  geometry::TetMesh mesh_;
+  EngineKind method_;
+  std::string name_;
+  StitchingSettings settings_;
+  hal::JobSystem* jobs_ = nullptr;
+  std::vector<SubVolume> subs_;
+  // Per grid node, its copies (CSR), and the seam spring's stiffness there (0 if not shared).
+  std::vector<int> copies_begin_;
+  std::vector<Copy> copies_;
+  std::vector<double> seam_stiffness_mn_per_mm_;
+  std::vector<int> shared_nodes_;  // grid nodes with more than one copy
+  std::vector<std::uint8_t> fixed_;
+
+  // Per frame, sized once.
+  std::vector<int> schedule_;
+  std::vector<std::uint8_t> due_;
+  std::vector<Eigen::Vector3d> shown_;
+  Eigen::VectorXd u_;
+  StitchStepStats stats_;
+};
+
+}  // namespace ultrasim::sim

@@ -1,0 +1,393 @@
+#include "ultrasim/sim/stitched_volume.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace ultrasim::sim {
+
+namespace {
+
+// How much a recovery says went wrong, for the stitched frame's one recovery.
+int severity(Recovery r) {
+  switch (r) {
+    case Recovery::kNone:
+      return 0;
+    case Recovery::kSubstepped:
+      return 1;
+    case Recovery::kKeptLastGood:
+      return 2;
+    case Recovery::kReset:
+      return 3;
+  }
+  return 0;
+}
+
+std::string sub_name(const SubVolumeBox& box) {
+  return "sub-volume (" + std::to_string(box.index.x()) + ", " + std::to_string(box.index.y()) +
+         ", " + std::to_string(box.index.z()) + ")";
+}
+
+// Beyond the probe's surface by this much a node is not in contact (the engines' contact
+// tolerances are far smaller): a sub-volume whose every node is farther is out of reach.
+constexpr double kReachMarginMm = 0.5;
+
+}  // namespace
+
+StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
+                               std::span<const Material> tet_materials,
+                               std::span<const std::uint8_t> fixed_nodes, EngineKind method,
+                               const EngineSettings& engine_settings,
+                               const StitchingSettings& stitching, hal::JobSystem* jobs)
+    : grid_(grid),
+      mesh_(geometry::make_grid_tet_mesh(grid)),
+      method_(method),
+      settings_(stitching),
+      jobs_(jobs),
+      fixed_(fixed_nodes.begin(), fixed_nodes.end()) {
+  if (static_cast<int>(tet_materials.size()) != mesh_.tet_count()) {
+    throw std::invalid_argument("StitchedVolume: " + std::to_string(tet_materials.size()) +
+                                " materials for " + std::to_string(mesh_.tet_count()) + " tets");
+  }
+  if (static_cast<int>(fixed_nodes.size()) != mesh_.node_count()) {
+    throw std::invalid_argument("StitchedVolume: " + std::to_string(fixed_nodes.size()) +
+                                " fixed flags for " + std::to_string(mesh_.node_count()) +
+                                " nodes");
+  }
+  if (!(stitching.spring_stiffness_per_modulus_mm > 0.0)) {
+    throw std::invalid_argument("StitchedVolume: spring_stiffness_per_modulus_mm must be > 0");
+  }
+  if (stitching.extra_sub_volumes_per_frame < 0) {
+    throw std::invalid_argument("StitchedVolume: extra_sub_volumes_per_frame must be >= 0");
+  }
+  build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
+  build_copies(tet_materials);
+  name_ = "stitched " + std::string(subs_.front().engine->name()) + " (" +
+          std::to_string(subs_.size()) + " sub-volumes)";
+  schedule_.reserve(subs_.size());
+  due_.assign(subs_.size(), 0);
+  shown_ = mesh_.rest_positions_mm;
+  u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    subs_[s].stepped = true;  // the first frame's bounds come from the rest shape
+  }
+  finish_frame();
+  for (auto& sub : subs_) sub.stepped = false;
+}
+
+StitchedVolume::~StitchedVolume() = default;
+
+void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
+                                       std::span<const std::uint8_t> fixed_nodes, EngineKind method,
+                                       const EngineSettings& engine_settings,
+                                       hal::JobSystem* /*jobs*/) {
+  const std::vector<SubVolumeBox> boxes =
+      split_grid(grid_.nodes, settings_.sub_volumes, settings_.overlap_nodes);
+  subs_.resize(boxes.size());
+  // How many sub-volumes mesh each grid tet.
+  std::vector<int> tet_copies(static_cast<std::size_t>(mesh_.tet_count()), 0);
+  std::vector<std::vector<int>> sub_tets(boxes.size());
+  for (std::size_t s = 0; s < boxes.size(); ++s) {
+    extract_sub_mesh(grid_, mesh_, boxes[s], &sub_tets[s]);
+    for (int t : sub_tets[s]) ++tet_copies[t];
+  }
+  for (std::size_t s = 0; s < boxes.size(); ++s) {
+    SubVolume& sub = subs_[s];
+    sub.box = boxes[s];
+    const geometry::TetMesh mesh = extract_sub_mesh(grid_, mesh_, sub.box);
+    std::vector<Material> materials;
+    materials.reserve(sub_tets[s].size());
+    for (int t : sub_tets[s]) {
+      materials.push_back(tet_materials[t]);
+      if (settings_.split_overlap_stiffness) materials.back().youngs_modulus_kpa /= tet_copies[t];
+    }
+    std::vector<std::uint8_t> fixed(static_cast<std::size_t>(mesh.node_count()));
+    sub.global_node.resize(fixed.size());
+    for (int k = 0, l = 0; k < sub.box.nodes.z(); ++k) {
+      for (int j = 0; j < sub.box.nodes.y(); ++j) {
+        for (int i = 0; i < sub.box.nodes.x(); ++i, ++l) {
+          const Eigen::Vector3i g = sub.box.first_node + Eigen::Vector3i(i, j, k);
+          sub.global_node[l] = grid_.node_index(g.x(), g.y(), g.z());
+          fixed[l] = fixed_nodes[sub.global_node[l]];
+        }
+      }
+    }
+    // One sub-volume per job-system task: each engine runs single-threaded.
+    try {
+      sub.engine = make_engine(method, mesh, materials, fixed, engine_settings);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("StitchedVolume: " + sub_name(sub.box) + ": " + e.what());
+    }
+    if (!sub.engine->supports_anchor_springs()) {
+      throw std::invalid_argument("StitchedVolume: " + std::string(sub.engine->name()) +
+                                  " cannot be stitched (it takes no anchor springs); use pcg, "
+                                  "msds-explicit or msds-implicit");
+    }
+    sub.previous_positions_mm = mesh.rest_positions_mm;
+  }
+}
+
+void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
+  const int n = mesh_.node_count();
+  copies_begin_.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (const auto& sub : subs_) {
+    for (int g : sub.global_node) ++copies_begin_[g + 1];
+  }
+  for (int g = 0; g < n; ++g) copies_begin_[g + 1] += copies_begin_[g];
+  copies_.resize(copies_begin_[n]);
+  std::vector<int> fill(copies_begin_.begin(), copies_begin_.end() - 1);
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    const auto& global = subs_[s].global_node;
+    for (int l = 0; l < static_cast<int>(global.size()); ++l) copies_[fill[global[l]]++] = {s, l};
+  }
+  // The seam's stiffness follows the stiffest tissue at the node, so a stiff inclusion's seam
+  // gapes no more than soft tissue's.
+  std::vector<double> stiffest_kpa(static_cast<std::size_t>(n), 0.0);
+  for (int t = 0; t < mesh_.tet_count(); ++t) {
+    for (int node : mesh_.tets[t]) {
+      stiffest_kpa[node] = std::max(stiffest_kpa[node], tet_materials[t].youngs_modulus_kpa);
+    }
+  }
+  seam_stiffness_mn_per_mm_.assign(static_cast<std::size_t>(n), 0.0);
+  for (int g = 0; g < n; ++g) {
+    if (copies_begin_[g + 1] - copies_begin_[g] < 2) continue;
+    shared_nodes_.push_back(g);
+    seam_stiffness_mn_per_mm_[g] = settings_.spring_stiffness_per_modulus_mm * stiffest_kpa[g];
+  }
+  for (auto& sub : subs_) {
+    for (int l = 0; l < static_cast<int>(sub.global_node.size()); ++l) {
+      const int g = sub.global_node[l];
+      if (seam_stiffness_mn_per_mm_[g] > 0.0 && !fixed_[g]) sub.shared_local.push_back(l);
+    }
+    sub.anchors.resize(sub.shared_local.size());
+  }
+}
+
+Eigen::Vector3d StitchedVolume::copy_position(const Copy& c) const {
+  return subs_[c.sub].engine->deformed_positions_mm()[c.local];
+}
+
+EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt_s) {
+  return step_within(probe, frame_dt_s, {});
+}
+
+EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double frame_dt_s,
+                                            const std::function<bool()>& may_continue) {
+  for (auto& sub : subs_) sub.stepped = false;
+  const int touched = plan_frame(probe);
+  const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
+  // The sub-volumes the probe may touch always step: skipping one would let the probe pass
+  // through the tissue.
+  int next = 0;
+  while (next < touched) {
+    const int count = std::min(batch, touched - next);
+    step_batch(std::span(schedule_).subspan(next, count), probe, frame_dt_s);
+    next += count;
+  }
+  const int scheduled = static_cast<int>(schedule_.size());
+  while (next < scheduled && (!may_continue || may_continue())) {
+    const int count = std::min(batch, scheduled - next);
+    step_batch(std::span(schedule_).subspan(next, count), probe, frame_dt_s);
+    next += count;
+  }
+  EngineStepStats out;
+  for (const auto& sub : subs_) {
+    if (!sub.stepped) continue;
+    const EngineStepStats& s = sub.last_stats;
+    out.iterations += s.iterations;
+    out.relative_residual = std::max(out.relative_residual, s.relative_residual);
+    out.contact_nodes += s.contact_nodes;
+    out.contact_force_n += s.contact_force_n;
+    out.inverted_tets = std::max(out.inverted_tets, s.inverted_tets);
+    out.diverged = out.diverged || s.diverged;
+    if (severity(s.recovery) > severity(out.recovery)) out.recovery = s.recovery;
+  }
+  finish_frame();
+  stats_.sub_volumes_touched = touched;
+  stats_.sub_volumes_stepped = next;
+  stats_.sub_volumes_deferred = 0;
+  for (const auto& sub : subs_) stats_.sub_volumes_deferred += !sub.stepped && !sub.asleep;
+  return out;
+}
+
+int StitchedVolume::plan_frame(const ProbeCollider* probe) {
+  const int count = sub_volume_count();
+  std::fill(due_.begin(), due_.end(), 0);
+  schedule_.clear();
+  for (int s = 0; s < count; ++s) {
+    SubVolume& sub = subs_[s];
+    // The probe's signed distance changes no faster than the point moves: no node of the box
+    // is within reach when its centre is farther than the box's half diagonal.
+    sub.touched = probe != nullptr && probe->signed_distance_mm(sub.box_center_mm) <=
+                                          sub.box_half_diagonal_mm + kReachMarginMm;
+    if (sub.touched) {
+      sub.asleep = false;
+      due_[s] = 1;
+      schedule_.push_back(s);
+    }
+  }
+  const int touched = static_cast<int>(schedule_.size());
+  if (!settings_.selective) {
+    for (int s = 0; s < count; ++s) {
+      if (!due_[s]) schedule_.push_back(s);
+      subs_[s].asleep = false;
+    }
+  } else {
+    // Neighbours of touched sub-volumes (faces, edges and corners).
+    for (int t = 0; t < touched; ++t) {
+      const Eigen::Vector3i centre = subs_[schedule_[t]].box.index;
+      for (int s = 0; s < count; ++s) {
+        if (due_[s]) continue;
+        if ((subs_[s].box.index - centre).cwiseAbs().maxCoeff() <= 1) {
+          due_[s] = 1;
+          subs_[s].asleep = false;
+          schedule_.push_back(s);
+        }
+      }
+    }
+    // Then the awake ones pulled hardest by their seams (the published paper picked one at
+    // random and named this as the better choice), the pull weighted by the frames each has
+    // waited: a seam pulls both its sides alike, and the side that steps cannot close it alone.
+    for (int extra = 0; extra < settings_.extra_sub_volumes_per_frame; ++extra) {
+      int best = -1;
+      for (int s = 0; s < count; ++s) {
+        if (due_[s] || subs_[s].asleep) continue;
+        if (best < 0 || priority(s) > priority(best)) best = s;
+      }
+      if (best < 0) break;
+      due_[best] = 1;
+      schedule_.push_back(best);
+    }
+  }
+  std::stable_sort(schedule_.begin() + touched, schedule_.end(),
+                   [&](int a, int b) { return priority(a) > priority(b); });
+  return touched;
+}
+
+double StitchedVolume::priority(int sub) const {
+  return subs_[sub].max_seam_force_mn * (1.0 + subs_[sub].frames_waiting);
+}
+
+void StitchedVolume::refresh_anchors(int s) {
+  SubVolume& sub = subs_[s];
+  for (std::size_t i = 0; i < sub.shared_local.size(); ++i) {
+    const int local = sub.shared_local[i];
+    const int g = sub.global_node[local];
+    Eigen::Vector3d others = Eigen::Vector3d::Zero();
+    int count = 0;
+    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+      if (copies_[c].sub == s) continue;
+      others += copy_position(copies_[c]);
+      ++count;
+    }
+    // count springs of stiffness k to the other copies pull as one of k × count to their mean.
+    sub.anchors[i] = {local, others / count, seam_stiffness_mn_per_mm_[g] * count};
+  }
+  sub.engine->set_anchor_springs(sub.anchors);
+}
+
+void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* probe,
+                                double frame_dt_s) {
+  // Anchors first, from positions no sub-volume of the batch has moved yet: the batch's steps
+  // are then independent and run in parallel.
+  for (int s : subs) refresh_anchors(s);
+  auto step_one = [&](int i) {
+    SubVolume& sub = subs_[subs[i]];
+    const auto before = sub.engine->deformed_positions_mm();
+    std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
+    sub.last_stats = sub.engine->step(probe, frame_dt_s);
+    sub.stepped = true;
+  };
+  if (jobs_ != nullptr && subs.size() > 1) {
+    hal::parallel_for(*jobs_, static_cast<int>(subs.size()), step_one);
+  } else {
+    for (int i = 0; i < static_cast<int>(subs.size()); ++i) step_one(i);
+  }
+}
+
+void StitchedVolume::finish_frame() {
+  for (auto& sub : subs_) {
+    if (!sub.stepped) continue;
+    const auto x = sub.engine->deformed_positions_mm();
+    Eigen::AlignedBox3d bounds;
+    double motion_squared = 0.0;
+    for (std::size_t l = 0; l < x.size(); ++l) {
+      bounds.extend(x[l]);
+      motion_squared =
+          std::max(motion_squared, (x[l] - sub.previous_positions_mm[l]).squaredNorm());
+      const int g = sub.global_node[l];
+      if (copies_begin_[g + 1] - copies_begin_[g] == 1) shown_[g] = x[l];
+    }
+    sub.box_center_mm = bounds.center();
+    sub.box_half_diagonal_mm = 0.5 * bounds.diagonal().norm();
+    sub.last_motion_mm = std::sqrt(motion_squared);
+  }
+  for (auto& sub : subs_) sub.max_seam_force_mn = 0.0;
+  stats_.max_gap_mm = 0.0;
+  stats_.max_seam_force_mn = 0.0;
+  for (int g : shared_nodes_) {
+    const int begin = copies_begin_[g], end = copies_begin_[g + 1];
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int c = begin; c < end; ++c) sum += copy_position(copies_[c]);
+    const int count = end - begin;
+    shown_[g] = sum / count;  // the published midpoint: no gap shows
+    if (fixed_[g]) continue;
+    double node_force = 0.0;
+    for (int c = begin; c < end; ++c) {
+      const Eigen::Vector3d x = copy_position(copies_[c]);
+      for (int d = c + 1; d < end; ++d) {
+        stats_.max_gap_mm = std::max(stats_.max_gap_mm, (copy_position(copies_[d]) - x).norm());
+      }
+      // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+      node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
+    }
+    // Every side of a seam feels its strongest pull: where three copies agree and the fourth
+    // does not, the three must wake too, or the fourth is held deformed by sleepers for ever.
+    for (int c = begin; c < end; ++c) {
+      double& sub_force = subs_[copies_[c].sub].max_seam_force_mn;
+      sub_force = std::max(sub_force, node_force);
+    }
+    stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, node_force);
+  }
+  for (int g = 0; g < mesh_.node_count(); ++g) {
+    u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
+  }
+  stats_.sub_volumes_asleep = 0;
+  for (auto& sub : subs_) {
+    sub.frames_waiting = sub.stepped ? 0 : sub.frames_waiting + 1;
+    if (settings_.selective && !sub.touched && sub.max_seam_force_mn < settings_.sleep_force_mn &&
+        sub.last_motion_mm < settings_.sleep_motion_mm) {
+      sub.asleep = true;
+    } else if (sub.max_seam_force_mn >= settings_.sleep_force_mn) {
+      sub.asleep = false;  // a seam pulls: wake
+    }
+    stats_.sub_volumes_asleep += sub.asleep;
+  }
+}
+
+void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
+  if (u_mm.size() != u_.size()) {
+    throw std::invalid_argument("StitchedVolume::set_displacements_mm: expected " +
+                                std::to_string(u_.size()) + " values, got " +
+                                std::to_string(u_mm.size()));
+  }
+  for (auto& sub : subs_) {
+    Eigen::VectorXd local(3 * static_cast<Eigen::Index>(sub.global_node.size()));
+    for (std::size_t l = 0; l < sub.global_node.size(); ++l) {
+      local.segment<3>(3 * static_cast<Eigen::Index>(l)) = u_mm.segment<3>(3 * sub.global_node[l]);
+    }
+    sub.engine->set_displacements_mm(local);
+    const auto x = sub.engine->deformed_positions_mm();
+    std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
+    sub.asleep = false;
+    sub.stepped = true;
+  }
+  finish_frame();
+  for (auto& sub : subs_) {
+    sub.stepped = false;
+    sub.asleep = false;
+  }
+}
+
+}  // namespace ultrasim::sim

@@ -1,0 +1,370 @@
+// Volume stitching: the split, the anchor springs it is built on (against direct solves), and
+// stitched regions against the same region simulated in one piece.
+
+#include "ultrasim/sim/stitched_volume.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <set>
+
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/linear_fem.hpp"
+#include "ultrasim/sim/msds.hpp"
+#include "ultrasim/sim/sub_volume_split.hpp"
+
+namespace ultrasim::sim {
+namespace {
+
+using geometry::GridSpec;
+
+// A slab of tissue: skin at z = 0, fixed at its deepest face, 2 mm spacing.
+struct Region {
+  GridSpec grid;
+  geometry::TetMesh mesh;
+  std::vector<Material> materials;
+  std::vector<std::uint8_t> fixed;
+};
+
+Region make_region(const Eigen::Vector3i& nodes) {
+  Region r;
+  r.grid.nodes = nodes;
+  r.grid.spacing_mm = Eigen::Vector3d::Constant(2.0);
+  r.mesh = geometry::make_grid_tet_mesh(r.grid);
+  const double deepest = 2.0 * (nodes.z() - 1);
+  Material tissue{1, "muscle", 30.0, 0.45};
+  Material vessel_wall{2, "wall", 90.0, 0.45};
+  const auto& p = r.mesh.rest_positions_mm;
+  for (const auto& t : r.mesh.tets) {
+    const Eigen::Vector3d c = (p[t[0]] + p[t[1]] + p[t[2]] + p[t[3]]) / 4.0;
+    // A stiffer band across the seam, so the seam carries unequal materials.
+    r.materials.push_back(std::abs(c.z() - 5.0) < 1.5 ? vessel_wall : tissue);
+  }
+  r.fixed.assign(p.size(), 0);
+  for (int n = 0; n < r.mesh.node_count(); ++n) r.fixed[n] = p[n].z() == deepest;
+  return r;
+}
+
+// The published sphere probe, its lowest point `depth_mm` below the skin at (x, y).
+ProbeCollider sphere_probe(double x_mm, double y_mm, double depth_mm, double radius_mm = 8.0) {
+  return ProbeCollider::sphere(
+      SphereCollider{Eigen::Vector3d(x_mm, y_mm, depth_mm - radius_mm), radius_mm});
+}
+
+double max_norm(const Eigen::VectorXd& u) {
+  double m = 0.0;
+  for (Eigen::Index i = 0; i < u.size(); i += 3) m = std::max(m, u.segment<3>(i).norm());
+  return m;
+}
+
+double max_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return max_norm(a - b);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The split.
+
+TEST(SplitGrid, PublishedTwentyFiveTwelveCubesMakeOneFiftyTwoByFiftyTwoByTwelveMesh) {
+  const auto boxes = split_grid({52, 52, 12}, {5, 5, 1}, 2);
+  ASSERT_EQ(boxes.size(), 25u);
+  int nodes = 0;
+  for (const auto& b : boxes) {
+    EXPECT_EQ(b.nodes, Eigen::Vector3i(12, 12, 12));
+    EXPECT_EQ(b.first_node, Eigen::Vector3i(10 * b.index.x(), 10 * b.index.y(), 0));
+    nodes += b.node_count();
+  }
+  // Table 5.1: 43,200 nodes and 166,375 tets stitched against 32,448 and 143,055 in one piece.
+  EXPECT_EQ(nodes, 43200);
+  EXPECT_EQ(25 * 5 * 11 * 11 * 11, 166375);
+  EXPECT_EQ(geometry::make_grid_tet_mesh(GridSpec{{52, 52, 12}, {}, {1, 1, 1}}).tet_count(),
+            143055);
+}
+
+TEST(SplitGrid, FifteenCubesAndUnevenSplitsCoverTheGridWithTheOverlap) {
+  for (int n : {1, 2, 3, 4, 5}) {
+    const int side = 15 * n - 2 * (n - 1);
+    for (const auto& b : split_grid({side, side, 15}, {n, n, 1}, 2)) {
+      EXPECT_EQ(b.nodes, Eigen::Vector3i(15, 15, 15));
+    }
+  }
+  // 20 nodes in 3: every node in a box, neighbours sharing exactly 2 layers.
+  const auto boxes = split_grid({20, 4, 4}, {3, 1, 1}, 2);
+  ASSERT_EQ(boxes.size(), 3u);
+  EXPECT_EQ(boxes.front().first_node.x(), 0);
+  EXPECT_EQ(boxes.back().first_node.x() + boxes.back().nodes.x(), 20);
+  for (int i = 0; i + 1 < 3; ++i) {
+    EXPECT_EQ(boxes[i].first_node.x() + boxes[i].nodes.x() - boxes[i + 1].first_node.x(), 2);
+  }
+}
+
+TEST(SplitGrid, RejectsSplitsThatDoNotFit) {
+  EXPECT_THROW(split_grid({6, 6, 6}, {0, 1, 1}, 2), std::invalid_argument);
+  EXPECT_THROW(split_grid({6, 6, 6}, {1, 1, 1}, 0), std::invalid_argument);
+  try {
+    split_grid({6, 6, 6}, {5, 1, 1}, 2);
+    FAIL() << "expected a throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("x has 6 nodes"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ExtractSubMesh, TakesTheGridMeshsOwnTetsEvenFromAnOddStart) {
+  const GridSpec grid{{9, 7, 5}, Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(1.5, 2.0, 2.5)};
+  const geometry::TetMesh whole = geometry::make_grid_tet_mesh(grid);
+  SubVolumeBox box;
+  box.first_node = {3, 1, 1};  // odd: meshed alone it would cut its cells the other way
+  box.nodes = {5, 4, 3};
+  std::vector<int> global;
+  const geometry::TetMesh sub = extract_sub_mesh(grid, whole, box, &global);
+  ASSERT_EQ(sub.tet_count(), 5 * 4 * 3 * 2);
+  ASSERT_EQ(global.size(), static_cast<std::size_t>(sub.tet_count()));
+  for (int t = 0; t < sub.tet_count(); ++t) {
+    for (int c = 0; c < 4; ++c) {
+      EXPECT_EQ(sub.rest_positions_mm[sub.tets[t][c]],
+                whole.rest_positions_mm[whole.tets[global[t]][c]]);
+    }
+  }
+  EXPECT_EQ(geometry::count_inverted_tets(sub.tets, sub.rest_positions_mm), 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Anchor springs.
+
+TEST(AnchorSprings, PcgFemSolvesTheAnchoredSystemAsADirectSolve) {
+  const Region r = make_region({8, 6, 5});
+  LinearFem fem(r.mesh, r.materials, r.fixed, FemSettings{});
+  std::vector<AnchorSpring> anchors;
+  for (int n = 0; n < r.mesh.node_count(); n += 7) {
+    if (r.fixed[n]) continue;
+    anchors.push_back({n, r.mesh.rest_positions_mm[n] + Eigen::Vector3d(0.3, -0.2, 0.5), 40.0});
+  }
+  fem.set_anchor_springs(anchors);
+  fem.solve_to_tolerance(1e-12, 5000);
+  // (K + A)_ff u_f = A (target − rest) by sparse LU on the same stiffness.
+  const int dofs = 3 * r.mesh.node_count();
+  Eigen::SparseMatrix<double> k = fem.stiffness();
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(dofs);
+  for (const auto& a : anchors) {
+    for (int i = 0; i < 3; ++i) {
+      k.coeffRef(3 * a.node + i, 3 * a.node + i) += a.stiffness_mn_per_mm;
+      rhs[3 * a.node + i] =
+          a.stiffness_mn_per_mm * (a.target_mm - r.mesh.rest_positions_mm[a.node])[i];
+    }
+  }
+  std::vector<int> free_dofs;
+  for (int d = 0; d < dofs; ++d) {
+    if (!r.fixed[d / 3]) free_dofs.push_back(d);
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<int> to_free(dofs, -1);
+  for (std::size_t f = 0; f < free_dofs.size(); ++f) to_free[free_dofs[f]] = static_cast<int>(f);
+  for (int c = 0; c < k.outerSize(); ++c) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(k, c); it; ++it) {
+      if (to_free[it.row()] >= 0 && to_free[it.col()] >= 0) {
+        triplets.emplace_back(to_free[it.row()], to_free[it.col()], it.value());
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> kff(free_dofs.size(), free_dofs.size());
+  kff.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::VectorXd bf(free_dofs.size());
+  for (std::size_t f = 0; f < free_dofs.size(); ++f) bf[f] = rhs[free_dofs[f]];
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(kff);
+  const Eigen::VectorXd uf = lu.solve(bf);
+  Eigen::VectorXd expected = Eigen::VectorXd::Zero(dofs);
+  for (std::size_t f = 0; f < free_dofs.size(); ++f) expected[free_dofs[f]] = uf[f];
+  EXPECT_LT(max_difference(fem.displacements_mm(), expected), 1e-8 * max_norm(expected));
+  // Removing them lets the tissue return to rest.
+  fem.set_anchor_springs({});
+  fem.solve_to_tolerance(1e-12, 5000);
+  EXPECT_LT(max_norm(fem.displacements_mm()), 1e-9);
+}
+
+TEST(AnchorSprings, MsdsSettlesWhereSpringsAndAnchorsBalance) {
+  const Region r = make_region({6, 5, 4});
+  for (auto integrator : {MsdsIntegrator::kExplicitEuler, MsdsIntegrator::kImplicitEuler}) {
+    MsdsEngine msds(integrator, r.mesh, r.materials, r.fixed, MsdsSettings{});
+    const int node = r.grid.node_index(3, 2, 0);  // on the skin
+    const AnchorSpring anchor{node, r.mesh.rest_positions_mm[node] + Eigen::Vector3d(0, 0, -1.0),
+                              200.0};
+    msds.set_anchor_springs(std::span(&anchor, 1));
+    for (int f = 0; f < 400; ++f) msds.step(nullptr, 1.0 / 60);
+    // At rest the anchor's pull equals the springs' (the internal forces include the anchor).
+    Eigen::VectorXd forces;
+    msds.internal_forces_mn(forces);
+    const double pull_mn =
+        anchor.stiffness_mn_per_mm * (anchor.target_mm - msds.deformed_positions_mm()[node]).norm();
+    for (int n = 0; n < r.mesh.node_count(); ++n) {
+      if (!r.fixed[n]) {
+        EXPECT_LT(forces.segment<3>(3 * n).norm(), 1e-4 * pull_mn) << n;
+      }
+    }
+    const double lifted = -msds.displacements_mm()[3 * node + 2];
+    EXPECT_GT(lifted, 0.1);
+    EXPECT_LT(lifted, 1.0);
+  }
+}
+
+TEST(AnchorSprings, RejectsBadAnchorsAndMethodsThatCannotTakeThem) {
+  const Region r = make_region({4, 4, 3});
+  LinearFem fem(r.mesh, r.materials, r.fixed, FemSettings{});
+  const AnchorSpring unsorted[] = {{5, {}, 1.0}, {3, {}, 1.0}};
+  EXPECT_THROW(fem.set_anchor_springs(unsorted), std::invalid_argument);
+  const AnchorSpring outside[] = {{r.mesh.node_count(), {}, 1.0}};
+  EXPECT_THROW(fem.set_anchor_springs(outside), std::invalid_argument);
+  const AnchorSpring negative[] = {{1, {}, -1.0}};
+  EXPECT_THROW(fem.set_anchor_springs(negative), std::invalid_argument);
+  try {
+    StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kExactFem, EngineSettings{},
+                   StitchingSettings{.sub_volumes = {2, 1, 1}});
+    FAIL() << "the exact FEM cannot be stitched";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot be stitched"), std::string::npos) << e.what();
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stitched against one piece.
+
+// The seam at x = 20 mm (a 2 × 1 split of 22 nodes), the probe pressing across it.
+constexpr double kSeamXmm = 20.0;
+
+TEST(StitchedVolume, PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  FemSettings fem;
+  fem.pcg_iterations_per_frame = 40;
+  EngineSettings engines;
+  engines.fem = fem;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engines,
+                          StitchingSettings{.sub_volumes = {2, 1, 1}, .selective = false}, &jobs);
+  LinearFem one_piece(r.mesh, r.materials, r.fixed, fem);
+  const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, 2.0);
+  // The same frames for both: the published stick contact holds a node where it was pushed out,
+  // so the answer depends on the path the contact set took.
+  for (int f = 0; f < 300; ++f) {
+    stitched.step(&probe, 1.0 / 60);
+    one_piece.step(&probe, 1.0 / 60);
+  }
+  one_piece.solve_to_tolerance(1e-10, 4000);
+  const double peak = max_norm(one_piece.displacements_mm());
+  ASSERT_GT(peak, 1.5);
+  const double error = max_difference(stitched.displacements_mm(), one_piece.displacements_mm());
+  EXPECT_LT(error, 0.02 * peak) << "error " << error << " mm of " << peak;
+  EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 0.1);
+  EXPECT_GT(stitched.last_stitch_stats().max_seam_force_mn, 0.0);
+  EXPECT_EQ(stitched.name(), "stitched PCG FEM (published) (2 sub-volumes)");
+}
+
+TEST(StitchedVolume, ImplicitMsdsMatchesOnePieceAtRestUnderAStillProbe) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  EngineSettings engines;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, engines,
+                          StitchingSettings{.sub_volumes = {2, 1, 1}, .selective = false}, &jobs);
+  MsdsEngine one_piece(MsdsIntegrator::kImplicitEuler, r.mesh, r.materials, r.fixed, engines.msds);
+  const ProbeCollider probe = sphere_probe(kSeamXmm + 2.0, 9.0, 2.0);
+  for (int f = 0; f < 300; ++f) {
+    stitched.step(&probe, 1.0 / 60);
+    one_piece.step(&probe, 1.0 / 60);
+  }
+  const double peak = max_norm(one_piece.displacements_mm());
+  ASSERT_GT(peak, 1.5);
+  const double error = max_difference(stitched.displacements_mm(), one_piece.displacements_mm());
+  EXPECT_LT(error, 0.02 * peak) << "error " << error << " mm of " << peak;
+  EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 0.1);
+}
+
+// A 4 × 4 split of a small slab: the probe in one corner.
+StitchedVolume make_four_by_four(const Region& r, hal::JobSystem* jobs, bool selective,
+                                 int extra = 1) {
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  stitching.selective = selective;
+  stitching.extra_sub_volumes_per_frame = extra;
+  return StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit, EngineSettings{},
+                        stitching, jobs);
+}
+
+TEST(StitchedVolume, SelectiveSimulationStepsTheTouchedTheirNeighboursAndTheHardestPulled) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched = make_four_by_four(r, &jobs, /*selective=*/true);
+  // Everything at rest sleeps.
+  stitched.step(nullptr, 1.0 / 60);
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_stepped, 0);
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_asleep, 16);
+  // Probe in the corner sub-volume (0, 0): it is touched; (1,0), (0,1), (1,1) are neighbours.
+  const ProbeCollider probe = sphere_probe(5.0, 5.0, 1.5, 4.0);
+  stitched.step(&probe, 1.0 / 60);
+  const StitchStepStats& s = stitched.last_stitch_stats();
+  EXPECT_EQ(s.sub_volumes_touched, 1);
+  EXPECT_EQ(s.sub_volumes_stepped, 4);  // no other is awake yet
+  std::set<int> stepped;
+  for (int i = 0; i < stitched.sub_volume_count(); ++i) {
+    if (stitched.stepped(i)) stepped.insert(i);
+  }
+  EXPECT_EQ(stepped, (std::set<int>{0, 1, 4, 5}));
+  // The seams pull the next ring awake; one of them (the hardest pulled) steps each frame.
+  for (int f = 0; f < 5; ++f) stitched.step(&probe, 1.0 / 60);
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_stepped, 5);
+  EXPECT_GT(stitched.last_stitch_stats().sub_volumes_asleep, 0);
+  // Lifted, far away: the tissue relaxes and falls asleep again.
+  const ProbeCollider away = sphere_probe(200.0, 200.0, -50.0);
+  int frames = 0;
+  while (stitched.last_stitch_stats().sub_volumes_asleep < 16 && frames < 3000) {
+    stitched.step(&away, 1.0 / 60);
+    ++frames;
+  }
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_asleep, 16) << frames << " frames";
+  EXPECT_LT(max_norm(stitched.displacements_mm()), 0.05);
+}
+
+TEST(StitchedVolume, BudgetDefersAllButTheTouchedAndSelectiveOffStepsAll) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  const ProbeCollider probe = sphere_probe(5.0, 5.0, 1.5, 4.0);
+  StitchedVolume budgeted = make_four_by_four(r, &jobs, true);
+  budgeted.step_within(&probe, 1.0 / 60, [] { return false; });
+  EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_stepped, 1);
+  EXPECT_TRUE(budgeted.stepped(0));
+  EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_deferred, 3);
+  StitchedVolume all = make_four_by_four(r, &jobs, false);
+  all.step(&probe, 1.0 / 60);
+  EXPECT_EQ(all.last_stitch_stats().sub_volumes_stepped, 16);
+  EXPECT_EQ(all.last_stitch_stats().sub_volumes_asleep, 0);
+}
+
+TEST(StitchedVolume, ShowsSharedNodesAtTheirCopiesMeanAndTakesALiveSwitch) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched = make_four_by_four(r, &jobs, false);
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);
+  for (int f = 0; f < 5; ++f) stitched.step(&probe, 1.0 / 60);
+  // Node (6, 6, 0) sits in the overlap of four sub-volumes.
+  const int g = r.grid.node_index(6, 6, 0);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int copies = 0;
+  for (int s = 0; s < stitched.sub_volume_count(); ++s) {
+    const SubVolumeBox& b = stitched.box(s);
+    if (!b.contains({6, 6, 0})) continue;
+    const Eigen::Vector3i l = Eigen::Vector3i(6, 6, 0) - b.first_node;
+    sum += stitched.sub_volume_engine(s)
+               .deformed_positions_mm()[l.x() + b.nodes.x() * (l.y() + b.nodes.y() * l.z())];
+    ++copies;
+  }
+  EXPECT_EQ(copies, 4);
+  EXPECT_LT((stitched.deformed_positions_mm()[g] - sum / copies).norm(), 1e-12);
+  // A live switch hands every copy the same field.
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * r.mesh.node_count());
+  for (int n = 0; n < r.mesh.node_count(); ++n) {
+    if (!r.fixed[n]) u[3 * n + 2] = 0.01 * r.mesh.rest_positions_mm[n].x();
+  }
+  stitched.set_displacements_mm(u);
+  EXPECT_LT(max_difference(stitched.displacements_mm(), u), 1e-12);
+  EXPECT_EQ(stitched.last_stitch_stats().max_gap_mm, 0.0);
+}
+
+}  // namespace
+}  // namespace ultrasim::sim
