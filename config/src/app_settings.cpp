@@ -200,6 +200,30 @@ TableSchema<sched::FrameBudgetSettings> frame_schema() {
   return t;
 }
 
+TableSchema<sim::StitchingSettings> stitching_schema() {
+  using S = sim::StitchingSettings;
+  TableSchema<S> t;
+  t.add(field("spring_stiffness_per_modulus_mm", &S::spring_stiffness_per_modulus_mm,
+              RealIn::open_closed(0.0, 10'000.0),
+              "Zero-length seam spring k = E of the stiffest tet at the node x this (mN/mm); "
+              "stiffer: a smaller gap between the copies of a shared node."));
+  t.add(field("split_overlap_stiffness", &S::split_overlap_stiffness, Boolean{},
+              "Give each copy of a shared tet 1/copies of its stiffness, so the tied copies are "
+              "as stiff as the tissue (false: each at full stiffness, as published)."));
+  t.add(field("selective", &S::selective, Boolean{},
+              "Step only the sub-volumes the probe may touch, their neighbours and a few more "
+              "(published); false: every sub-volume every frame."));
+  t.add(field("extra_sub_volumes_per_frame", &S::extra_sub_volumes_per_frame,
+              IntegerIn<int>{0, 4096},
+              "Selective: sub-volumes beyond the touched and their neighbours, hardest pulled by "
+              "their seams first (published: 1)."));
+  t.add(field("sleep_force_mn", &S::sleep_force_mn, RealIn::closed(0.0, 1e6),
+              "A sub-volume out of reach sleeps when its seams pull less than this (mN) ..."));
+  t.add(field("sleep_motion_mm", &S::sleep_motion_mm, RealIn::closed(0.0, 1e3),
+              "... and its last step moved no node more than this (mm)."));
+  return t;
+}
+
 const DocumentSchema<AppSettings>& app_schema() {
   // Built once, read-only afterwards: safe to share between threads.
   static const DocumentSchema<AppSettings> schema = [] {
@@ -223,6 +247,8 @@ const DocumentSchema<AppSettings>& app_schema() {
             "Large-strain hyperelastic FEM (method hyperelastic).");
     d.table("msds", &AppSettings::msds, msds_schema(),
             "Mass-spring-damper system (methods msds-explicit and msds-implicit).");
+    d.table("stitching", &AppSettings::stitching, stitching_schema(),
+            "Volume stitching, for cases split into sub-volumes ([mesh] sub_volumes).");
     d.table("collider", &AppSettings::collider, collider_schema(),
             "The probe as the tissue feels it.");
     d.table("frame", &AppSettings::frame, frame_schema(), "The fixed per-frame time budget.");

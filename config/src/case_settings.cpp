@@ -56,6 +56,20 @@ void check_region(const CaseMesh& mesh, const toml::table& table, const ReadCont
   }
 }
 
+void check_split(const CaseMesh& mesh, const toml::table& table, const ReadContext& ctx,
+                 const std::string& table_key) {
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const int parts = mesh.sub_volumes[axis];
+    if (parts == 1 || mesh.nodes[axis] - mesh.overlap_nodes >= parts) continue;
+    const toml::node& node = *table.get_as<toml::array>("sub_volumes")->get(axis);
+    fail_at(ctx, node.source(), element_key(dotted(table_key, "sub_volumes"), axis),
+            std::to_string(parts) + " sub-volumes on " + kAxisNames[axis] + " do not fit " +
+                std::to_string(mesh.nodes[axis]) + " nodes overlapping by " +
+                std::to_string(mesh.overlap_nodes),
+            "at most nodes - overlap_nodes sub-volumes per axis");
+  }
+}
+
 TableSchema<CaseMesh> mesh_schema() {
   using S = CaseMesh;
   TableSchema<S> t;
@@ -81,7 +95,13 @@ TableSchema<CaseMesh> mesh_schema() {
                                            {"reuss", sim::MaterialMixing::kReuss}}},
               "A tet cut by several labels: the label at its centroid (published), or the Reuss "
               "average of its tissues by volume."));
+  t.add(field("sub_volumes", &S::sub_volumes, FixedArray<IntegerIn<int>, 3>{IntegerIn<int>{1, 64}},
+              "Volume stitching: sub-volumes along x, y, z ([1, 1, 1]: one piece). Methods pcg, "
+              "msds-explicit and msds-implicit then run stitched; the others in one piece."));
+  t.add(field("overlap_nodes", &S::overlap_nodes, IntegerIn<int>{1, 8},
+              "Node layers neighbouring sub-volumes share (published: 2)."));
   t.check(check_region);
+  t.check(check_split);
   return t;
 }
 

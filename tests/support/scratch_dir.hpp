@@ -15,12 +15,13 @@ namespace ultrasim::testing {
 
 class ScratchDir {
  public:
-  ScratchDir() {
+  // `tag` tells apart several scratch folders of one test.
+  explicit ScratchDir(std::string_view tag = {}) {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string name = "ultrasim_" +
                        (info != nullptr ? std::string(info->test_suite_name()) + "_" + info->name()
                                         : std::string("test")) +
-                       "_" + std::to_string(::getpid());
+                       std::string(tag) + "_" + std::to_string(::getpid());
     for (char& c : name) {
       if (c == '/') c = '_';
     }

@@ -1,11 +1,15 @@
 #include "ultrasim/kiosk/frame_loop.hpp"
 
+#include <algorithm>
+
 namespace ultrasim::kiosk {
 
 FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
                      const sched::FrameBudgetSettings& budgets)
     : session_(session),
       renderer_(renderer),
+      clock_(clock),
+      simulation_budget_us_(budgets.simulation_budget_us),
       scheduler_(clock, table(budgets), {60.0, budgets.budget_us}) {}
 
 std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings& budgets) {
@@ -23,9 +27,13 @@ sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sam
   return scheduler_.tick();
 }
 
-void FrameLoop::simulate(void* self, const sched::TaskTick&) {
+void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
-  loop->outcome_ = loop->session_.simulate(loop->sample_);
+  // A stitched method spends at most its budget, and never the time reserved for the render:
+  // past the deadline only the sub-volumes the probe touches still step.
+  const std::int64_t allowed_us =
+      std::clamp<std::int64_t>(tick.time_left_us, 0, loop->simulation_budget_us_);
+  loop->outcome_ = loop->session_.simulate(loop->sample_, loop->clock_.now_us() + allowed_us);
 }
 
 void FrameLoop::bscan(void* self, const sched::TaskTick&) {

@@ -169,6 +169,14 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
     report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);
+    if (outcome.stitch) {
+      StitchSummary& s = report.stitching;
+      s.frames += 1;
+      s.sub_volumes_stepped += outcome.stitch->sub_volumes_stepped;
+      s.sub_volumes_deferred += outcome.stitch->sub_volumes_deferred;
+      s.frames_deferring += outcome.stitch->sub_volumes_deferred > 0;
+      s.max_gap_mm = std::max(s.max_gap_mm, outcome.stitch->max_gap_mm);
+    }
 
     // A marker is shown by the last frame at or before it: the next frame would be past it.
     while (next_marker < markers.size() && markers[next_marker].first < now + budget_us) {

@@ -53,6 +53,11 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"diverged_frames\": " << r.diverged_frames << ", \"substepped\": " << r.recoveries[1]
       << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
       << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
+      << "  \"stitching\": {\"stitched_frames\": " << r.stitching.frames
+      << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped
+      << ", \"sub_volumes_deferred\": " << r.stitching.sub_volumes_deferred
+      << ", \"frames_deferring\": " << r.stitching.frames_deferring
+      << ", \"max_gap_mm\": " << r.stitching.max_gap_mm << "},\n"
       << "  \"frames\": " << r.frames << ",\n"
       << "  \"frames_in_contact\": " << r.frames_in_contact << ",\n"
       << "  \"poses_rejected\": " << r.poses_rejected << ",\n"

@@ -74,16 +74,29 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
   update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
 }
 
+std::unique_ptr<sim::DeformationEngine> Session::make_method(sim::EngineKind method) const {
+  const config::CaseMesh& mesh = tissue_.settings.mesh;
+  const bool split = mesh.sub_volumes[0] * mesh.sub_volumes[1] * mesh.sub_volumes[2] > 1;
+  if (split && sim::stitchable(method)) {
+    sim::StitchingSettings stitching = settings_.stitching;
+    stitching.sub_volumes = mesh.sub_volumes;
+    stitching.overlap_nodes = mesh.overlap_nodes;
+    return std::make_unique<sim::StitchedVolume>(tissue_.grid, tissue_.tet_materials,
+                                                 tissue_.fixed_nodes, method, engine_settings_,
+                                                 stitching, &jobs_);
+  }
+  return sim::make_engine(method, tissue_.mesh, tissue_.tet_materials, tissue_.fixed_nodes,
+                          engine_settings_, skin_nodes_, &jobs_);
+}
+
 void Session::switch_method(sim::EngineKind method) {
   auto& slot = engines_[static_cast<std::size_t>(method)];
-  if (!slot) {
-    slot = sim::make_engine(method, tissue_.mesh, tissue_.tet_materials, tissue_.fixed_nodes,
-                            engine_settings_, skin_nodes_, &jobs_);
-  }
+  if (!slot) slot = make_method(method);
   if (engine_ != nullptr && engine_ != slot.get()) {
     slot->set_displacements_mm(engine_->displacements_mm());
   }
   engine_ = slot.get();
+  stitched_ = dynamic_cast<sim::StitchedVolume*>(engine_);
 }
 
 std::optional<sim::ProbeCollider> Session::probe_collider() const {
@@ -144,7 +157,8 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   return outcome;
 }
 
-FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample) {
+FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
+                               hal::TimestampUs deadline_us) {
   FrameOutcome outcome;
   if (sample && sample->health == hal::PoseHealth::kOk && hal::is_valid(*sample)) {
     pose_ = sample;
@@ -160,7 +174,17 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample) {
                           : std::clamp(static_cast<double>(t0 - last_update_us_) * 1e-6, 1e-4, 0.1);
   last_update_us_ = t0;
   const std::optional<sim::ProbeCollider> collider = probe_collider();
-  outcome.sim = engine_->step(collider ? &*collider : nullptr, frame_dt_s);
+  const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
+  if (stitched_ != nullptr) {
+    // Small enough for std::function's local buffer: no allocation per frame.
+    const auto time_left = [this, deadline_us] { return clock_.now_us() < deadline_us; };
+    outcome.sim = stitched_->step_within(
+        probe, frame_dt_s,
+        deadline_us < 0 ? std::function<bool()>{} : std::function<bool()>{time_left});
+    outcome.stitch = stitched_->last_stitch_stats();
+  } else {
+    outcome.sim = engine_->step(probe, frame_dt_s);
+  }
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;
   outcome.in_contact = in_contact_;

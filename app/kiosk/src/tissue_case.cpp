@@ -54,7 +54,8 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
                                                          : c.volume.world_max_mm();
   const Eigen::Vector3i nodes(mesh_settings.nodes[0], mesh_settings.nodes[1],
                               mesh_settings.nodes[2]);
-  c.mesh = geometry::make_grid_tet_mesh(geometry::GridSpec::spanning(lo, hi, nodes));
+  c.grid = geometry::GridSpec::spanning(lo, hi, nodes);
+  c.mesh = geometry::make_grid_tet_mesh(c.grid);
 
   c.tet_materials =
       tet_materials(c.mesh, c.labels, c.settings.materials, mesh_settings.material_mixing, toml);

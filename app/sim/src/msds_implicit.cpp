@@ -171,8 +171,8 @@ MsdsEngine::ImplicitSpringBlock MsdsEngine::implicit_spring_block(const MsdsSpri
 }
 
 double MsdsEngine::anchor_system_diagonal(int node, double h) const {
-  const double k = anchor_stiffness_mn_per_mm_[node];
-  return h * k * settings_.damping_per_stiffness_s + h * h * k;
+  // Undamped (anchor_force says why): h² k only.
+  return h * h * anchor_stiffness_mn_per_mm_[node];
 }
 
 Eigen::Vector3d MsdsEngine::system_row_times(int node, const std::vector<Eigen::Vector3d>& p,

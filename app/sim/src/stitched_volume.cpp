@@ -1,6 +1,5 @@
 #include "ultrasim/sim/stitched_volume.hpp"
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -32,8 +31,15 @@ std::string sub_name(const SubVolumeBox& box) {
 // Beyond the probe's surface by this much a node is not in contact (the engines' contact
 // tolerances are far smaller): a sub-volume whose every node is farther is out of reach.
 constexpr double kReachMarginMm = 0.5;
+// Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
+constexpr int kReachBlockNodes = 4;
 
 }  // namespace
+
+bool stitchable(EngineKind method) {
+  return method == EngineKind::kPcgFem || method == EngineKind::kMsdsExplicit ||
+         method == EngineKind::kMsdsImplicit;
+}
 
 StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
                                std::span<const Material> tet_materials,
@@ -82,8 +88,8 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
                                        std::span<const std::uint8_t> fixed_nodes, EngineKind method,
                                        const EngineSettings& engine_settings,
                                        hal::JobSystem* /*jobs*/) {
-  const std::vector<SubVolumeBox> boxes =
-      split_grid(grid_.nodes, settings_.sub_volumes, settings_.overlap_nodes);
+  const std::vector<SubVolumeBox> boxes = split_grid(
+      grid_.nodes, Eigen::Vector3i(settings_.sub_volumes.data()), settings_.overlap_nodes);
   subs_.resize(boxes.size());
   // How many sub-volumes mesh each grid tet.
   std::vector<int> tet_copies(static_cast<std::size_t>(mesh_.tet_count()), 0);
@@ -113,9 +119,20 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
         }
       }
     }
+    // A frame is refused when more than a fraction of the tets invert; a probe's rim folds about
+    // as many tets in a sub-volume as in one piece, so the same fraction of a sub-volume's far
+    // fewer tets would refuse what one piece accepts, and the seam would tear open between a
+    // sub-volume that refused and one that did not. Each keeps the one-piece count instead.
+    const double tet_share = static_cast<double>(mesh_.tet_count()) / mesh.tet_count();
+    EngineSettings settings = engine_settings;
+    for (double* fraction :
+         {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
+          &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {
+      *fraction = std::min(1.0, *fraction * tet_share);
+    }
     // One sub-volume per job-system task: each engine runs single-threaded.
     try {
-      sub.engine = make_engine(method, mesh, materials, fixed, engine_settings);
+      sub.engine = make_engine(method, mesh, materials, fixed, settings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("StitchedVolume: " + sub_name(sub.box) + ": " + e.what());
     }
@@ -125,6 +142,22 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
                                   "msds-explicit or msds-implicit");
     }
     sub.previous_positions_mm = mesh.rest_positions_mm;
+    const Eigen::Vector3i blocks =
+        (sub.box.nodes.array() + kReachBlockNodes - 1) / kReachBlockNodes;
+    sub.node_block.resize(sub.global_node.size());
+    for (int k = 0, l = 0; k < sub.box.nodes.z(); ++k) {
+      for (int j = 0; j < sub.box.nodes.y(); ++j) {
+        for (int i = 0; i < sub.box.nodes.x(); ++i, ++l) {
+          sub.node_block[l] =
+              i / kReachBlockNodes +
+              blocks.x() * (j / kReachBlockNodes + blocks.y() * (k / kReachBlockNodes));
+        }
+      }
+    }
+    const auto block_count = static_cast<std::size_t>(blocks.prod());
+    sub.block_bounds.resize(block_count);
+    sub.block_center_mm.resize(block_count);
+    sub.block_half_diagonal_mm.resize(block_count);
   }
 }
 
@@ -217,10 +250,7 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
   schedule_.clear();
   for (int s = 0; s < count; ++s) {
     SubVolume& sub = subs_[s];
-    // The probe's signed distance changes no faster than the point moves: no node of the box
-    // is within reach when its centre is farther than the box's half diagonal.
-    sub.touched = probe != nullptr && probe->signed_distance_mm(sub.box_center_mm) <=
-                                          sub.box_half_diagonal_mm + kReachMarginMm;
+    sub.touched = probe != nullptr && within_reach(sub, *probe);
     if (sub.touched) {
       sub.asleep = false;
       due_[s] = 1;
@@ -263,6 +293,18 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
   std::stable_sort(schedule_.begin() + touched, schedule_.end(),
                    [&](int a, int b) { return priority(a) > priority(b); });
   return touched;
+}
+
+bool StitchedVolume::within_reach(const SubVolume& sub, const ProbeCollider& probe) const {
+  // The probe's signed distance changes no faster than the point moves: no node of a block is
+  // within reach when the block's centre is farther than its half diagonal.
+  for (std::size_t b = 0; b < sub.block_center_mm.size(); ++b) {
+    if (probe.signed_distance_mm(sub.block_center_mm[b]) <=
+        sub.block_half_diagonal_mm[b] + kReachMarginMm) {
+      return true;
+    }
+  }
+  return false;
 }
 
 double StitchedVolume::priority(int sub) const {
@@ -310,17 +352,19 @@ void StitchedVolume::finish_frame() {
   for (auto& sub : subs_) {
     if (!sub.stepped) continue;
     const auto x = sub.engine->deformed_positions_mm();
-    Eigen::AlignedBox3d bounds;
+    for (auto& b : sub.block_bounds) b.setEmpty();
     double motion_squared = 0.0;
     for (std::size_t l = 0; l < x.size(); ++l) {
-      bounds.extend(x[l]);
+      sub.block_bounds[sub.node_block[l]].extend(x[l]);
       motion_squared =
           std::max(motion_squared, (x[l] - sub.previous_positions_mm[l]).squaredNorm());
       const int g = sub.global_node[l];
       if (copies_begin_[g + 1] - copies_begin_[g] == 1) shown_[g] = x[l];
     }
-    sub.box_center_mm = bounds.center();
-    sub.box_half_diagonal_mm = 0.5 * bounds.diagonal().norm();
+    for (std::size_t b = 0; b < sub.block_bounds.size(); ++b) {
+      sub.block_center_mm[b] = sub.block_bounds[b].center();
+      sub.block_half_diagonal_mm[b] = 0.5 * sub.block_bounds[b].diagonal().norm();
+    }
     sub.last_motion_mm = std::sqrt(motion_squared);
   }
   for (auto& sub : subs_) sub.max_seam_force_mn = 0.0;

@@ -37,6 +37,13 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.corotational.relative_tolerance, b.corotational.relative_tolerance);
   EXPECT_EQ(a.corotational.max_inverted_fraction, b.corotational.max_inverted_fraction);
   EXPECT_EQ(a.collider.radius_mm, b.collider.radius_mm);
+  EXPECT_EQ(a.stitching.spring_stiffness_per_modulus_mm,
+            b.stitching.spring_stiffness_per_modulus_mm);
+  EXPECT_EQ(a.stitching.split_overlap_stiffness, b.stitching.split_overlap_stiffness);
+  EXPECT_EQ(a.stitching.selective, b.stitching.selective);
+  EXPECT_EQ(a.stitching.extra_sub_volumes_per_frame, b.stitching.extra_sub_volumes_per_frame);
+  EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
+  EXPECT_EQ(a.stitching.sleep_motion_mm, b.stitching.sleep_motion_mm);
   EXPECT_EQ(a.frame.budget_us, b.frame.budget_us);
   EXPECT_EQ(a.frame.simulation_budget_us, b.frame.simulation_budget_us);
   EXPECT_EQ(a.frame.bscan_budget_us, b.frame.bscan_budget_us);
@@ -96,6 +103,12 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.corotational.pcg_iterations_per_frame = 33;
   changed.corotational.max_inverted_fraction = 0.0125;
   changed.collider.radius_mm = 12.5;
+  changed.stitching.spring_stiffness_per_modulus_mm = 7.5;
+  changed.stitching.split_overlap_stiffness = false;
+  changed.stitching.selective = false;
+  changed.stitching.extra_sub_volumes_per_frame = 3;
+  changed.stitching.sleep_force_mn = 0.25;
+  changed.stitching.sleep_motion_mm = 2e-3;
   changed.frame.budget_us = 33'333;
   changed.frame.simulation_budget_us = 7'000;
   changed.frame.bscan_budget_us = 2'500;
@@ -164,8 +177,9 @@ TEST(AppSettings, UnknownTableIsAnError) {
   EXPECT_THAT(caught.message, HasSubstr("did you mean \"collider\"?"));
   EXPECT_THAT(
       caught.message,
-      HasSubstr("allowed: display, bscan, sim, fem, exact, corotational, hyperelastic, msds, "
-                "collider, frame"));
+      HasSubstr(
+          "allowed: display, bscan, sim, fem, exact, corotational, hyperelastic, msds, stitching, "
+          "collider, frame"));
 }
 
 TEST(AppSettings, FarOffUnknownKeyGetsNoSuggestion) {

@@ -81,6 +81,8 @@ void expect_same(const CaseSettings& a, const CaseSettings& b) {
   EXPECT_EQ(a.mesh.fixed_faces, b.mesh.fixed_faces);
   EXPECT_EQ(a.mesh.fix_label, b.mesh.fix_label);
   EXPECT_EQ(a.mesh.material_mixing, b.mesh.material_mixing);
+  EXPECT_EQ(a.mesh.sub_volumes, b.mesh.sub_volumes);
+  EXPECT_EQ(a.mesh.overlap_nodes, b.mesh.overlap_nodes);
   ASSERT_EQ(a.materials.size(), b.materials.size());
   for (std::size_t i = 0; i < a.materials.size(); ++i) {
     EXPECT_EQ(a.materials[i].label, b.materials[i].label);
@@ -143,6 +145,8 @@ TEST(CaseSettings, OptionalPartsKeepDefaults) {
   EXPECT_TRUE(c.mesh.fixed_faces.empty());
   EXPECT_TRUE(c.mesh.fix_label.empty());
   EXPECT_EQ(c.mesh.material_mixing, sim::MaterialMixing::kCentroid);
+  EXPECT_EQ(c.mesh.sub_volumes, (std::array<int, 3>{1, 1, 1}));
+  EXPECT_EQ(c.mesh.overlap_nodes, 2);
   EXPECT_EQ(c.materials.at(0).poisson_ratio, sim::Material{}.poisson_ratio);
   EXPECT_EQ(c.probe.kind, imaging::ProbeGeometry{}.kind);
   EXPECT_EQ(c.probe.width_mm, imaging::ProbeGeometry{}.width_mm);
@@ -165,6 +169,8 @@ TEST(CaseSettings, EveryFieldRoundTripsThroughFormat) {
                         BoxFace::kYMax, BoxFace::kZMin, BoxFace::kZMax};
   c.mesh.fix_label = {7, 0, 255};
   c.mesh.material_mixing = sim::MaterialMixing::kReuss;
+  c.mesh.sub_volumes = {1, 2, 64};
+  c.mesh.overlap_nodes = 1;
   c.materials = {{.label = 1, .name = "skin", .youngs_modulus_kpa = 150.0, .poisson_ratio = 0.45},
                  {.label = 4, .name = "vein", .youngs_modulus_kpa = 1e7, .poisson_ratio = 0.0}};
   c.probe = {.kind = imaging::ProbeKind::kConvex,
@@ -305,6 +311,25 @@ TEST(CaseSettings, MaterialMixingIsAKnownRule) {
               }).message,
               HasSubstr("mesh.material_mixing: unknown value \"voigt\"; allowed: one of "
                         "\"centroid\", \"reuss\""));
+}
+
+TEST(CaseSettings, SubVolumesMustFitTheNodesWithTheirOverlap) {
+  const CaseDir dir;
+  // nodes = [2, 3, 4]: 3 nodes on y hold at most 3 - 2 = 1 sub-volume overlapping by 2.
+  const auto caught = error_of([&] {
+    (void)parse_case_settings(minimal_case("sub_volumes = [1, 2, 2]\n"), "case.toml", dir.path());
+  });
+  EXPECT_EQ(caught.details.key, "mesh.sub_volumes[1]");
+  EXPECT_THAT(caught.message, HasSubstr("2 sub-volumes on y do not fit 3 nodes overlapping by 2"));
+  // With one shared layer, 4 nodes on z take 2 (and 3 on y as well).
+  const CaseSettings c = parse_case_settings(
+      minimal_case("sub_volumes = [1, 2, 2]\noverlap_nodes = 1\n"), "case.toml", dir.path());
+  EXPECT_EQ(c.mesh.sub_volumes, (std::array<int, 3>{1, 2, 2}));
+  EXPECT_THAT(error_of([&] {
+                (void)parse_case_settings(minimal_case("sub_volumes = [0, 1, 1]\n"), "case.toml",
+                                          dir.path());
+              }).message,
+              HasSubstr("mesh.sub_volumes[0]"));
 }
 
 TEST(CaseSettings, BadProbeKindListsAllowedValues) {

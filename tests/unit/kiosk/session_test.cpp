@@ -231,6 +231,75 @@ TEST_F(SessionTest, EveryMethodCanBeSwitchedToLiveAndStartsFromTheShapeShown) {
   }
 }
 
+// The tiny case on a 13 × 9 × 9 grid split in three along x: the stitchable methods run stitched,
+// the others in one piece, and a past deadline steps only the sub-volumes the probe may touch.
+class StitchedSessionTest : public ::testing::Test {
+ protected:
+  static std::string split_toml(const std::string& split) {
+    std::string toml = testing::tiny_case_toml();
+    const std::string nodes = "nodes = [5, 5, 5]";
+    toml.replace(toml.find(nodes), nodes.size(), "nodes = [13, 9, 9]\n" + split);
+    return toml;
+  }
+  StitchedSessionTest()
+      : stitched_files_(split_toml("sub_volumes = [3, 1, 1]"), "stitched"),
+        one_piece_files_(split_toml(""), "one_piece"),
+        stitched_(load_tissue_case(stitched_files_.dir())),
+        one_piece_(load_tissue_case(one_piece_files_.dir())) {
+    settings_.bscan.width_px = 64;
+    settings_.bscan.height_px = 64;
+    settings_.sim.method = sim::EngineKind::kMsdsImplicit;
+  }
+  static float largest_displacement(const Session& session) {
+    const auto d = session.frame_input(0).mesh.node_displacement_mm;
+    return *std::max_element(d.begin(), d.end());
+  }
+  testing::TinyCase stitched_files_, one_piece_files_;
+  TissueCase stitched_, one_piece_;
+  config::AppSettings settings_;
+  hal::ManualClock clock_;
+  hal::InlineJobSystem jobs_;
+};
+
+TEST_F(StitchedSessionTest, StitchableMethodsRunStitchedAndMatchOnePiece) {
+  Session stitched(stitched_, settings_, clock_, jobs_);
+  Session one_piece(one_piece_, settings_, clock_, jobs_);
+  ASSERT_EQ(stitched_.settings.mesh.sub_volumes, (std::array<int, 3>{3, 1, 1}));
+  EXPECT_EQ(stitched.method_name(), "stitched MSDS implicit Euler (3 sub-volumes)");
+  FrameOutcome outcome;
+  for (int f = 0; f < 60; ++f) {
+    outcome = stitched.update(pose_at(std::min(2.0, 0.2 * f)));
+    one_piece.update(pose_at(std::min(2.0, 0.2 * f)));
+  }
+  ASSERT_TRUE(outcome.stitch.has_value());
+  EXPECT_TRUE(outcome.in_contact);
+  // Seams under the face's rounded rim on a 1.7 mm grid: ~0.11 mm apart before the midpoint
+  // display (on the 2 mm benchmark region away from the rim, ≤ 0.07 mm: docs/accuracy.md).
+  EXPECT_LT(outcome.stitch->max_gap_mm, 0.2);
+  EXPECT_NEAR(largest_displacement(stitched), largest_displacement(one_piece),
+              0.02 * largest_displacement(one_piece));
+  // The exact FEM cannot be stitched: it runs in one piece, from the stitched shape.
+  stitched.switch_method(sim::EngineKind::kExactFem);
+  EXPECT_EQ(stitched.method_name(), "exact FEM");
+  EXPECT_FALSE(stitched.update(pose_at(2.0)).stitch.has_value());
+}
+
+TEST_F(StitchedSessionTest, APastDeadlineStepsOnlyTheTouchedSubVolumes) {
+  Session session(stitched_, settings_, clock_, jobs_);
+  // At x = -14 mm the 16 mm face reaches the first sub-volume only; its neighbour is due but
+  // must wait, and the third, at rest, sleeps.
+  hal::PoseSample pose = pose_at(1.0);
+  pose.position_mm.x() = -14.0;
+  const FrameOutcome late = session.simulate(pose, clock_.now_us());
+  ASSERT_TRUE(late.stitch.has_value());
+  EXPECT_EQ(late.stitch->sub_volumes_stepped, late.stitch->sub_volumes_touched);
+  EXPECT_EQ(late.stitch->sub_volumes_touched, 1);
+  EXPECT_EQ(late.stitch->sub_volumes_deferred, 1);
+  EXPECT_EQ(late.stitch->sub_volumes_asleep, 1);
+  const FrameOutcome on_time = session.simulate(pose);
+  EXPECT_GT(on_time.stitch->sub_volumes_stepped, on_time.stitch->sub_volumes_touched);
+}
+
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
   Session session(tissue_, settings_, clock_, jobs_);
   const BscanControls before = session.controls();

@@ -60,7 +60,8 @@ press_depth_mm = 3.0
 
 class TinyCase {
  public:
-  explicit TinyCase(const std::string& toml = tiny_case_toml()) {
+  explicit TinyCase(const std::string& toml = tiny_case_toml(), std::string_view tag = {})
+      : scratch_(tag) {
     imaging::Volume<std::uint8_t> echo({21, 21, 21}, {1, 1, 1}, {-10, -10, 0});
     imaging::Volume<std::uint8_t> labels({21, 21, 21}, {1, 1, 1}, {-10, -10, 0});
     for (int k = 0; k < 21; ++k)

@@ -23,8 +23,11 @@ struct AppSettings {
   sim::CorotationalSettings corotational;  // [corotational]
   sim::HyperelasticSettings hyperelastic;  // [hyperelastic]
   sim::MsdsSettings msds;                  // [msds]
-  sim::ProbeColliderSettings collider;     // [collider]
-  sched::FrameBudgetSettings frame;        // [frame]
+  // [stitching]: how stitched cases run; the split itself (sub_volumes, overlap_nodes) is the
+  // case's ([mesh] in case.toml) and is not read here.
+  sim::StitchingSettings stitching;
+  sim::ProbeColliderSettings collider;  // [collider]
+  sched::FrameBudgetSettings frame;     // [frame]
 };
 
 // Reads and validates the app settings file at path. Every key is optional (missing keys keep the

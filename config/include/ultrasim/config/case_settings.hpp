@@ -25,6 +25,12 @@ struct CaseMesh {
   std::vector<int> fix_label;        // nodes inside these labels (e.g. bone) do not move either
   // How a tet cut by several labels gets its material (sim::MaterialMixing).
   sim::MaterialMixing material_mixing = sim::MaterialMixing::kCentroid;
+  // Volume stitching (sim::StitchedVolume): the grid split into sub-volumes along x, y, z, each
+  // in [1, 64] (1, 1, 1: one piece), neighbours sharing overlap_nodes node layers, in [1, 8].
+  // Every box must keep more than overlap_nodes nodes on a split axis, and each must hold fixed
+  // nodes (the app refuses a split that leaves one free to float).
+  std::array<int, 3> sub_volumes{1, 1, 1};
+  int overlap_nodes = 2;
 };
 
 // [scan]: the scripted probe's sweep over the case, for headless runs. Millimetres, patient space.

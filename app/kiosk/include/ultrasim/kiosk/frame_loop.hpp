@@ -56,6 +56,8 @@ class FrameLoop {
 
   Session& session_;
   FrameRenderer& renderer_;
+  const hal::Clock& clock_;
+  std::int64_t simulation_budget_us_;
   std::optional<hal::PoseSample> sample_;
   FrameOutcome outcome_;
   sched::Scheduler scheduler_;

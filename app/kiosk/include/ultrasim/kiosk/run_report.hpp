@@ -21,6 +21,15 @@ struct Snapshot {
   std::string method;  // deformation method shown
 };
 
+// What stitched frames did (frames a stitched method ran).
+struct StitchSummary {
+  std::int64_t frames = 0;
+  std::int64_t sub_volumes_stepped = 0;   // summed over the frames
+  std::int64_t sub_volumes_deferred = 0;  // summed: due but left for later (selection or time)
+  std::int64_t frames_deferring = 0;      // frames that left any due sub-volume for later
+  double max_gap_mm = 0.0;                // largest gap between copies of a shared node
+};
+
 // Everything a headless run measured.
 struct RunReport {
   std::string case_name;
@@ -42,6 +51,7 @@ struct RunReport {
   std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
   int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;
+  StitchSummary stitching;
   sched::FrameTimeStats frame{0};       // whole frames against the frame budget
   std::vector<sched::TaskStats> tasks;  // the frame loop's tasks, in the order they run
   std::vector<Snapshot> snapshots;

@@ -22,6 +22,7 @@
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
+#include "ultrasim/sim/stitched_volume.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -30,6 +31,7 @@ struct FrameOutcome {
   bool pose_rejected = false;  // the sample was missing, unhealthy or non-finite: last good kept
   bool in_contact = false;     // the probe touches the tissue, so there is an image
   sim::EngineStepStats sim;
+  std::optional<sim::StitchStepStats> stitch;  // when the method runs stitched
 };
 
 // The scanner's controls a trainee can change while scanning.
@@ -57,8 +59,11 @@ class Session {
 
   // update() in its three stages, for a frame scheduler that may skip the last two when the
   // frame has no time left for them (the screen then shows their previous results):
-  // 1. the sample, contact and deformation;
-  FrameOutcome simulate(const std::optional<hal::PoseSample>& sample);
+  // 1. the sample, contact and deformation. A stitched method steps the sub-volumes the probe
+  //    may touch whatever the time, then the rest in priority order while the clock is before
+  //    `deadline_us` (< 0: no deadline, every due sub-volume);
+  FrameOutcome simulate(const std::optional<hal::PoseSample>& sample,
+                        hal::TimestampUs deadline_us = -1);
   // 2. the B-scan through the deformed tissue: held when frozen, blank when the probe is off;
   void update_bscan();
   // 3. what the 3D view draws of the tissue: mesh nodes and vessel surfaces.
@@ -88,7 +93,9 @@ class Session {
 
   // The deformation method in use, and a live switch to another: it starts from the current
   // shape (at rest: no velocity). The first switch to a method builds it (the exact FEM's
-  // factorisation takes about a second on the default case); later switches are instant.
+  // factorisation takes about a second on the default case); later switches are instant. On a
+  // case split into sub-volumes ([mesh] sub_volumes) the methods that can be stitched
+  // (sim::stitchable) run stitched, the others in one piece.
   // Throws std::invalid_argument if the method cannot be built on this case (nothing changes).
   // Call between frames, from the frame thread.
   sim::EngineKind method() const { return engine_->kind(); }
@@ -112,6 +119,8 @@ class Session {
   std::vector<std::uint8_t> skin_nodes_;  // the mesh's skin face: where the probe can touch
   std::array<std::unique_ptr<sim::DeformationEngine>, 6> engines_;  // built on first use
   sim::DeformationEngine* engine_ = nullptr;
+  sim::StitchedVolume* stitched_ = nullptr;  // engine_, when it runs stitched
+  std::unique_ptr<sim::DeformationEngine> make_method(sim::EngineKind method) const;
   hal::TimestampUs last_update_us_ = -1;
   geometry::TetLocator locator_;
   BscanControls controls_;

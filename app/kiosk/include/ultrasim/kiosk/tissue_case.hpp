@@ -24,7 +24,8 @@ struct TissueCase {
   config::CaseSettings settings;
   imaging::Volume<std::uint8_t> volume;      // B-mode echo
   imaging::Volume<std::uint8_t> labels;      // tissue labels (docs/case-format.md)
-  geometry::TetMesh mesh;                    // rest configuration over the case's region
+  geometry::GridSpec grid;                   // the tet grid over the case's region
+  geometry::TetMesh mesh;                    // make_grid_tet_mesh(grid): the rest configuration
   std::vector<sim::Material> tet_materials;  // one per tet ([mesh] material_mixing)
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface

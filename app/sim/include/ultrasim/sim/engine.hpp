@@ -32,8 +32,8 @@ struct EngineStepStats {
 };
 
 // A zero-length spring pulling one node toward a target point (volume stitching: the target is the
-// node's twin in the overlapping sub-volume). Damped like the tissue's springs: c = k × the
-// method's damping per stiffness, on the node's own velocity (dynamic methods only).
+// node's twin in the overlapping sub-volume). The explicit MSDS damps it like the tissue's
+// springs (c = k × its damping per stiffness, on the node's velocity); the others do not.
 struct AnchorSpring {
   int node = 0;
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();

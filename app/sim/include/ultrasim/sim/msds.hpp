@@ -276,7 +276,7 @@ class MsdsEngine final : public DeformationEngine {
                                                    double h);
   // Row `node` of (M + h C + h² K) times p, anchors included.
   Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p, double h) const;
-  // The anchor's h c + h² k on the node's diagonal (0 without one).
+  // The anchor's h² k on the node's diagonal (0 without one).
   double anchor_system_diagonal(int node, double h) const;
   StepResult finish_implicit_update(double dt_s);
   double contact_force_n() const;

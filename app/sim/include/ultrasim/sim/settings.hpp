@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -132,6 +133,33 @@ struct HyperelasticSettings {
   // contact_tolerance_mm inside the probe, or max_contact_rounds.
   int max_contact_rounds = 8;
   double contact_tolerance_mm = 1e-3;
+};
+
+// How a large region is split and stitched.
+struct StitchingSettings {
+  // Sub-volumes along x, y, z (published: 5 × 5 × 1; 1 × 1 × 1: one piece, no stitching).
+  std::array<int, 3> sub_volumes{1, 1, 1};
+  // Node layers neighbours share (published: 2; one shared layer would let the seam kink).
+  int overlap_nodes = 2;
+  // Zero-length spring between the copies of a shared node, per unit Young's modulus of the
+  // stiffest tet at the node, mm (kPa × mm = mN/mm). Stiffer: a smaller gap between the copies
+  // (the gap is the seam's force over this), and for the explicit MSDS heavier overlap nodes.
+  double spring_stiffness_per_modulus_mm = 20.0;
+  // The cells neighbours share are meshed in each of them: tied together, the copies are as stiff
+  // as all of them in parallel, and the seam band is that many times too stiff (the published
+  // split; ~8 % displacement error across a seam under the probe). true: each copy of a shared
+  // tet gets 1 / copies of its Young's modulus, so the tied copies add up to the tissue's
+  // stiffness. Masses are not split: the static answer does not depend on them.
+  bool split_overlap_stiffness = true;
+  // Selective simulation (published §5.2): each frame only the sub-volumes the probe may touch,
+  // their neighbours and extra_sub_volumes_per_frame others, those pulled hardest by their seams
+  // first. false: every sub-volume every frame.
+  bool selective = true;
+  int extra_sub_volumes_per_frame = 1;
+  // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
+  // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
+  double sleep_force_mn = 0.05;
+  double sleep_motion_mm = 1e-4;
 };
 
 // The probe as the tissue feels it.

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -18,32 +19,8 @@
 
 namespace ultrasim::sim {
 
-// How a large region is split and stitched.
-struct StitchingSettings {
-  // Sub-volumes along x, y, z (the published 5 × 5 × 1).
-  Eigen::Vector3i sub_volumes = Eigen::Vector3i(5, 5, 1);
-  // Node layers neighbours share (published: 2; one shared layer would let the seam kink).
-  int overlap_nodes = 2;
-  // Zero-length spring between the copies of a shared node, per unit Young's modulus of the
-  // stiffest tet at the node, mm (kPa × mm = mN/mm). Stiffer: a smaller gap between the copies
-  // (the gap is the seam's force over this), and for the explicit MSDS heavier overlap nodes.
-  double spring_stiffness_per_modulus_mm = 20.0;
-  // The cells neighbours share are meshed in each of them: tied together, the copies are as stiff
-  // as all of them in parallel, and the seam band is that many times too stiff (the published
-  // split; ~8 % displacement error across a seam under the probe). true: each copy of a shared
-  // tet gets 1 / copies of its Young's modulus, so the tied copies add up to the tissue's
-  // stiffness. Masses are not split: the static answer does not depend on them.
-  bool split_overlap_stiffness = true;
-  // Selective simulation (published §5.2): each frame only the sub-volumes the probe may touch,
-  // their neighbours and extra_sub_volumes_per_frame others, those pulled hardest by their seams
-  // first. false: every sub-volume every frame.
-  bool selective = true;
-  int extra_sub_volumes_per_frame = 1;
-  // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
-  // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
-  double sleep_force_mn = 0.05;
-  double sleep_motion_mm = 1e-4;
-};
+// Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG FEM).
+bool stitchable(EngineKind method);
 
 // What a stitched frame did, beyond the engine's stats.
 struct StitchStepStats {
@@ -116,8 +93,13 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<int> shared_local;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
-    Eigen::Vector3d box_center_mm = Eigen::Vector3d::Zero();
-    double box_half_diagonal_mm = 0.0;
+    // Blocks of a few nodes per axis (per local node, its block) and each block's bounding box
+    // at the last step: the probe's reach is tested per block, so a probe near a sub-volume's
+    // edge does not count as touching it.
+    std::vector<int> node_block;
+    std::vector<Eigen::Vector3d> block_center_mm;
+    std::vector<double> block_half_diagonal_mm;
+    std::vector<Eigen::AlignedBox3d> block_bounds;
     double max_seam_force_mn = 0.0;
     double last_motion_mm = 0.0;
     int frames_waiting = 0;  // since it last stepped
@@ -142,6 +124,8 @@ class StitchedVolume final : public DeformationEngine {
   // Order among the due sub-volumes not touched: seam pull × (1 + frames waited).
   double priority(int sub) const;
   void refresh_anchors(int sub);
+  // Whether the probe may touch a node of the sub-volume (its blocks' bounds at the last step).
+  bool within_reach(const SubVolume& sub, const ProbeCollider& probe) const;
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s);
   // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
   // shown positions (copies' mean) and displacements.

@@ -1,0 +1,230 @@
+// Volume stitching at the published sizes (dissertation tables 5.1–5.3), per frame on 1 and 2
+// threads, with the published sphere probe (radius 8 mm) pressed 4 mm into the middle of the
+// region and sliding ±2 mm. Tissue at 2 mm spacing, fixed at its deepest face.
+//   - Table 5.1: 25 × 12³ stitched (selective) against the one-piece 52 × 52 × 12 mesh;
+//   - Tables 5.2/5.3: 1, 4, 9, 16, 25 sub-volumes of 12³ or 15³, with and without selective
+//     simulation.
+// Methods: the published PCG FEM (20 iterations) and MSDS (explicit Euler, 20 steps a frame),
+// and the implicit MSDS. Counters: sub-volumes stepped a frame, the largest frame (the target
+// is every frame inside 16.7 ms at 25 × 15³ on 2 threads), the seam gap. After the runs, a
+// summary of medians with ratios: stitched over one piece (5.1), selective over all (5.2/5.3).
+//   build/ci/tests/bench/stitch_bench [--benchmark_filter=...]
+
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "median.hpp"
+#include "ultrasim/drivers/posix/thread_pool.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/stitched_volume.hpp"
+
+namespace {
+
+using namespace ultrasim;
+
+constexpr double kSpacingMm = 2.0;
+constexpr double kFrameDtS = 1.0 / 60.0;
+constexpr int kWarmUpFrames = 20;  // the press, untimed
+
+struct Region {
+  geometry::GridSpec grid;
+  geometry::TetMesh mesh;
+  std::vector<sim::Material> materials;
+  std::vector<std::uint8_t> fixed;
+};
+
+// side × side × depth nodes: fat over muscle, fixed at the deepest face. Built once per size.
+const Region& region(int side, int depth) {
+  static std::map<int, Region> regions;
+  Region& r = regions[side * 1000 + depth];
+  if (!r.mesh.tets.empty()) return r;
+  r.grid.nodes = {side, side, depth};
+  r.grid.spacing_mm = Eigen::Vector3d::Constant(kSpacingMm);
+  r.mesh = geometry::make_grid_tet_mesh(r.grid);
+  const auto& p = r.mesh.rest_positions_mm;
+  for (const auto& t : r.mesh.tets) {
+    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
+    r.materials.push_back(z < 8 ? sim::Material{2, "fat", 20.0, 0.45}
+                                : sim::Material{3, "muscle", 50.0, 0.45});
+  }
+  const double deepest = kSpacingMm * (depth - 1);
+  r.fixed.assign(p.size(), 0);
+  for (std::size_t n = 0; n < p.size(); ++n) r.fixed[n] = p[n].z() == deepest;
+  return r;
+}
+
+// The published sphere, pressed 4 mm over 20 frames at the region's middle, then sliding ±2 mm
+// along x at 0.2 mm a frame.
+sim::ProbeCollider probe_at(const Region& r, int frame) {
+  constexpr double kRadiusMm = 8.0;
+  const double middle = 0.5 * kSpacingMm * (r.grid.nodes.x() - 1);
+  const double depth = std::min(4.0, 0.2 * frame);
+  const int phase = std::max(0, frame - kWarmUpFrames) % 40;
+  const double x = phase < 20 ? -2.0 + 0.2 * phase : 2.0 - 0.2 * (phase - 20);
+  return sim::ProbeCollider::sphere(
+      sim::SphereCollider{Eigen::Vector3d(middle + x, middle, depth - kRadiusMm), kRadiusMm});
+}
+
+sim::EngineKind method(benchmark::State& state) {
+  return static_cast<sim::EngineKind>(state.range(0));
+}
+
+// Times each frame and sets the counters every benchmark reports.
+template <typename Step>
+void run_frames(benchmark::State& state, const Region& r, Step&& step) {
+  for (int frame = 0; frame < kWarmUpFrames; ++frame) step(probe_at(r, frame));
+  int frame = kWarmUpFrames;
+  double max_ms = 0.0;
+  for (auto _ : state) {
+    const auto probe = probe_at(r, frame++);
+    const auto start = std::chrono::steady_clock::now();
+    step(probe);
+    const std::chrono::duration<double, std::milli> took = std::chrono::steady_clock::now() - start;
+    max_ms = std::max(max_ms, took.count());
+  }
+  state.counters["max_frame_ms"] = max_ms;
+  state.counters["nodes"] = r.mesh.node_count();
+  state.SetLabel(std::string(sim::engine_key(method(state))));
+}
+
+void BM_OnePiece(benchmark::State& state) {
+  const Region& r = region(static_cast<int>(state.range(1)), static_cast<int>(state.range(2)));
+  drivers::posix::ThreadPool jobs(static_cast<int>(state.range(3)));
+  auto engine = sim::make_engine(method(state), r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+  run_frames(state, r, [&](const sim::ProbeCollider& p) { engine->step(&p, kFrameDtS); });
+  state.counters["tets"] = r.mesh.tet_count();
+}
+
+void BM_Stitched(benchmark::State& state) {
+  const int per_side = static_cast<int>(state.range(1));
+  const int sub_nodes = static_cast<int>(state.range(2));
+  const int side = per_side * sub_nodes - 2 * (per_side - 1);
+  const Region& r = region(side, sub_nodes);
+  drivers::posix::ThreadPool jobs(static_cast<int>(state.range(4)));
+  sim::StitchingSettings stitching;
+  stitching.sub_volumes = {per_side, per_side, 1};
+  stitching.selective = state.range(3) != 0;
+  sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method(state), {}, stitching, &jobs);
+  double stepped = 0.0, gap = 0.0;
+  int frames = 0;
+  run_frames(state, r, [&](const sim::ProbeCollider& p) {
+    stitched.step(&p, kFrameDtS);
+    stepped += stitched.last_stitch_stats().sub_volumes_stepped;
+    gap = std::max(gap, stitched.last_stitch_stats().max_gap_mm);
+    ++frames;
+  });
+  int tets = 0;
+  for (int s = 0; s < stitched.sub_volume_count(); ++s) {
+    const auto& b = stitched.box(s).nodes;
+    tets += 5 * (b.x() - 1) * (b.y() - 1) * (b.z() - 1);
+  }
+  state.counters["stepped"] = stepped / frames;
+  state.counters["max_gap_mm"] = gap;
+  state.counters["tets"] = tets;
+  state.counters["nodes"] = stitched.sub_volume_count() * sub_nodes * sub_nodes * sub_nodes;
+}
+
+constexpr int kMethods[] = {static_cast<int>(sim::EngineKind::kPcgFem),
+                            static_cast<int>(sim::EngineKind::kMsdsExplicit),
+                            static_cast<int>(sim::EngineKind::kMsdsImplicit)};
+
+void one_piece_args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"method", "side", "depth", "threads"});
+  for (int m : kMethods) {
+    for (int threads : {1, 2}) b->Args({m, 52, 12, threads});
+  }
+}
+
+void stitched_args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"method", "per_side", "sub_nodes", "selective", "threads"});
+  for (int m : kMethods) {
+    for (int sub_nodes : {12, 15}) {
+      for (int per_side = 1; per_side <= 5; ++per_side) {
+        for (int selective : {0, 1}) {
+          if (per_side == 1 && selective) continue;  // nothing to select
+          for (int threads : {1, 2}) b->Args({m, per_side, sub_nodes, selective, threads});
+        }
+      }
+    }
+  }
+}
+
+BENCHMARK(BM_OnePiece)->Apply(one_piece_args)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK(BM_Stitched)->Apply(stitched_args)->Unit(benchmark::kMillisecond)->Iterations(60);
+
+// The console output as usual, then the published tables' figures as medians and ratios.
+class TableReporter : public benchmark::ConsoleReporter {
+ public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run& run : runs) {
+      if (run.run_type != Run::RT_Iteration || run.error_occurred || run.iterations == 0) continue;
+      times_ms_[run.run_name.str()].push_back(1e3 * run.real_accumulated_time / run.iterations);
+    }
+  }
+
+  void print_summary() const {
+    std::printf("\nTable 5.1: ms per frame, 25 x 12^3 stitched (selective) / one 52x52x12 mesh\n");
+    std::printf("%-14s %8s %11s %11s %7s\n", "method", "threads", "one-piece", "stitched", "ratio");
+    for (int m : kMethods) {
+      for (int t : {1, 2}) {
+        const double one = median("BM_OnePiece/method:" + std::to_string(m) +
+                                  "/side:52/depth:12/threads:" + std::to_string(t));
+        const double st = median(stitched_name(m, 5, 12, 1, t));
+        if (one > 0.0 && st > 0.0) {
+          std::printf("%-14s %8d %11.2f %11.2f %7.3f\n", key(m), t, one, st, st / one);
+        }
+      }
+    }
+    for (int sub_nodes : {12, 15}) {
+      std::printf("\nTable 5.%d: ms per frame, n x %d^3, selective (all), 2 threads\n",
+                  sub_nodes == 12 ? 2 : 3, sub_nodes);
+      std::printf("%-14s", "method");
+      for (int n = 1; n <= 5; ++n) std::printf(" %18d", n * n);
+      std::printf("\n");
+      for (int m : kMethods) {
+        std::printf("%-14s", key(m));
+        for (int n = 1; n <= 5; ++n) {
+          const double all = median(stitched_name(m, n, sub_nodes, 0, 2));
+          const double sel = n == 1 ? all : median(stitched_name(m, n, sub_nodes, 1, 2));
+          std::printf(" %8.2f (%7.2f)", sel, all);
+        }
+        std::printf("\n");
+      }
+    }
+  }
+
+ private:
+  static const char* key(int m) { return sim::engine_key(static_cast<sim::EngineKind>(m)).data(); }
+  static std::string stitched_name(int m, int n, int sub_nodes, int selective, int threads) {
+    return "BM_Stitched/method:" + std::to_string(m) + "/per_side:" + std::to_string(n) +
+           "/sub_nodes:" + std::to_string(sub_nodes) + "/selective:" + std::to_string(selective) +
+           "/threads:" + std::to_string(threads);
+  }
+  double median(const std::string& prefix) const {
+    for (const auto& [name, times] : times_ms_) {
+      if (name.rfind(prefix, 0) == 0) return bench::median(times);
+    }
+    return 0.0;
+  }
+  std::map<std::string, std::vector<double>> times_ms_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  TableReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  reporter.print_summary();
+  benchmark::Shutdown();
+  return 0;
+}

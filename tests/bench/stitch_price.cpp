@@ -1,0 +1,202 @@
+// The price of stitching and of skipping sub-volumes, as CSVs for the chart (docs/accuracy.md):
+//   build/ci/tests/bench/stitch_price --out DIR
+//   /usr/bin/python3 scripts/plot_engines.py --stitching DIR --out docs/images
+// writes DIR/stitch-frames.csv and DIR/stitch-stiffness.csv.
+//
+// The region of table 5.1 (25 sub-volumes of 12³ nodes, one 52 × 52 × 12 grid, 2 mm spacing,
+// fat over muscle, fixed at the bottom) under the published sphere probe, in two scenarios:
+//   pressed: pressed 4 mm at the middle of a sub-volume over 20 frames, slid 8 mm across a seam
+//            and back over 60, then held still for 120;
+//   placed:  put down 4 mm deep at once where four sub-volumes meet, then held for 200.
+// The same frames run on the one-piece mesh with the same method: what differs is stitching.
+// The published contact holds a node where it first met the probe (it never slides), so a
+// pressed probe freezes whatever the stitched run did differently on the way in; the placed one
+// shows what stitching itself costs once converged.
+//   frames:    per frame, for each scenario, method and variant (selective or all; the
+//              overlap's stiffness split among its copies, or each copy at full stiffness as
+//              published), the displacement error against one piece (max norm over the largest
+//              one-piece displacement), the largest gap between copies of a shared node before
+//              the midpoint display, the strongest seam pull and the sub-volumes stepped.
+//   stiffness: the seam spring's stiffness per modulus from 1 to 200 mm, placed scenario after
+//              its hold: the gap and the error.
+// A study, not a benchmark: nothing is timed and nothing here asserts (stitched_volume_test
+// does). Takes a few minutes.
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ultrasim/drivers/posix/thread_pool.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/stitched_volume.hpp"
+
+namespace {
+
+using namespace ultrasim;
+
+constexpr double kSpacingMm = 2.0;
+constexpr double kFrameDtS = 1.0 / 60.0;
+constexpr int kPressFrames = 20, kSlideFrames = 60, kHoldFrames = 120;
+constexpr int kSide = 52, kDepth = 12;
+constexpr int kPlacedFrames = 200;
+// Where sub-volumes (2, 2), (3, 2), (2, 3) and (3, 3) overlap: grid nodes 30 and 31 on x and y.
+constexpr double kCornerMm = 61.0;
+
+struct Region {
+  geometry::GridSpec grid;
+  geometry::TetMesh mesh;
+  std::vector<sim::Material> materials;
+  std::vector<std::uint8_t> fixed;
+};
+
+Region make_region() {
+  Region r;
+  r.grid.nodes = {kSide, kSide, kDepth};
+  r.grid.spacing_mm = Eigen::Vector3d::Constant(kSpacingMm);
+  r.mesh = geometry::make_grid_tet_mesh(r.grid);
+  const auto& p = r.mesh.rest_positions_mm;
+  for (const auto& t : r.mesh.tets) {
+    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
+    r.materials.push_back(z < 8 ? sim::Material{2, "fat", 20.0, 0.45}
+                                : sim::Material{3, "muscle", 50.0, 0.45});
+  }
+  r.fixed.assign(p.size(), 0);
+  for (std::size_t n = 0; n < p.size(); ++n) r.fixed[n] = p[n].z() == kSpacingMm * (kDepth - 1);
+  return r;
+}
+
+// Pressed at the middle of sub-volume (2, 2), then slid to x = +8 mm (across the seam at the
+// next sub-volume's first node, 20 mm on) and back, then still.
+constexpr double kRadiusMm = 8.0;
+
+sim::ProbeCollider placed_probe() {
+  return sim::ProbeCollider::sphere(
+      sim::SphereCollider{Eigen::Vector3d(kCornerMm, kCornerMm, 4.0 - kRadiusMm), kRadiusMm});
+}
+
+sim::ProbeCollider probe_at(int frame) {
+  const double middle = 0.5 * kSpacingMm * (kSide - 1);
+  const double depth = std::min(4.0, 0.2 * frame);
+  double x = 0.0;
+  if (frame >= kPressFrames && frame < kPressFrames + kSlideFrames) {
+    const int f = frame - kPressFrames;
+    x = f < kSlideFrames / 2 ? 16.0 * f / kSlideFrames : 16.0 * (kSlideFrames - f) / kSlideFrames;
+  }
+  return sim::ProbeCollider::sphere(
+      sim::SphereCollider{Eigen::Vector3d(middle + x, middle, depth - kRadiusMm), kRadiusMm});
+}
+
+double max_norm(const Eigen::VectorXd& u) {
+  double m = 0.0;
+  for (Eigen::Index i = 0; i < u.size(); i += 3) m = std::max(m, u.segment<3>(i).norm());
+  return m;
+}
+
+struct Variant {
+  const char* name;
+  bool selective;
+  bool split_overlap_stiffness;
+};
+
+constexpr Variant kVariants[] = {
+    {"selective", true, true},
+    {"all", false, true},
+    {"published-overlap", true, false},
+};
+
+constexpr sim::EngineKind kMethods[] = {sim::EngineKind::kPcgFem, sim::EngineKind::kMsdsExplicit,
+                                        sim::EngineKind::kMsdsImplicit};
+
+void frames_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
+  out << "scenario,method,variant,frame,phase,error,gap_mm,seam_force_mn,stepped\n";
+  for (const bool placed : {false, true}) {
+    const int total = placed ? kPlacedFrames : kPressFrames + kSlideFrames + kHoldFrames;
+    const auto probe_for = [&](int f) { return placed ? placed_probe() : probe_at(f); };
+    const char* scenario = placed ? "placed" : "pressed";
+    for (auto method : kMethods) {
+      auto one_piece = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+      std::vector<Eigen::VectorXd> reference;
+      for (int f = 0; f < total; ++f) {
+        const auto probe = probe_for(f);
+        one_piece->step(&probe, kFrameDtS);
+        reference.push_back(one_piece->displacements_mm());
+      }
+      for (const Variant& v : kVariants) {
+        sim::StitchingSettings stitching;
+        stitching.sub_volumes = {5, 5, 1};
+        stitching.selective = v.selective;
+        stitching.split_overlap_stiffness = v.split_overlap_stiffness;
+        sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
+        for (int f = 0; f < total; ++f) {
+          const auto probe = probe_for(f);
+          stitched.step(&probe, kFrameDtS);
+          const auto& s = stitched.last_stitch_stats();
+          const double error =
+              max_norm(stitched.displacements_mm() - reference[f]) / max_norm(reference[f]);
+          const char* phase = placed                            ? "hold"
+                              : f < kPressFrames                ? "press"
+                              : f < kPressFrames + kSlideFrames ? "slide"
+                                                                : "hold";
+          out << scenario << ',' << sim::engine_key(method) << ',' << v.name << ',' << f << ','
+              << phase << ',' << error << ',' << s.max_gap_mm << ',' << s.max_seam_force_mn << ','
+              << s.sub_volumes_stepped << '\n';
+        }
+        std::fprintf(stderr, "frames: %s %s %s done\n", scenario, sim::engine_key(method).data(),
+                     v.name);
+      }
+    }
+  }
+}
+
+void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
+  out << "method,stiffness_per_modulus_mm,error,gap_mm\n";
+  const auto probe = placed_probe();
+  for (auto method : kMethods) {
+    auto one_piece = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+    for (int f = 0; f < kPlacedFrames; ++f) one_piece->step(&probe, kFrameDtS);
+    for (double k : {1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0}) {
+      sim::StitchingSettings stitching;
+      stitching.sub_volumes = {5, 5, 1};
+      stitching.selective = false;
+      stitching.spring_stiffness_per_modulus_mm = k;
+      sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
+      for (int f = 0; f < kPlacedFrames; ++f) stitched.step(&probe, kFrameDtS);
+      const double error = max_norm(stitched.displacements_mm() - one_piece->displacements_mm()) /
+                           max_norm(one_piece->displacements_mm());
+      out << sim::engine_key(method) << ',' << k << ',' << error << ','
+          << stitched.last_stitch_stats().max_gap_mm << '\n';
+      std::fprintf(stderr, "stiffness: %s k %g error %.4f gap %.4f\n",
+                   sim::engine_key(method).data(), k, error,
+                   stitched.last_stitch_stats().max_gap_mm);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string dir;
+  for (int i = 1; i + 1 < argc; ++i) {
+    if (std::strcmp(argv[i], "--out") == 0) dir = argv[i + 1];
+  }
+  if (dir.empty()) {
+    std::fprintf(stderr, "usage: stitch_price --out DIR\n");
+    return 2;
+  }
+  const Region r = make_region();
+  drivers::posix::ThreadPool jobs(2);
+  std::ofstream frames(dir + "/stitch-frames.csv");
+  std::ofstream stiffness(dir + "/stitch-stiffness.csv");
+  if (!frames || !stiffness) {
+    std::fprintf(stderr, "stitch_price: cannot write in %s\n", dir.c_str());
+    return 1;
+  }
+  frames_study(r, jobs, frames);
+  stiffness_study(r, jobs, stiffness);
+  return 0;
+}
