@@ -13,12 +13,14 @@ FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock
       scheduler_(clock, table(budgets), {60.0, budgets.budget_us}) {}
 
 std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings& budgets) {
-  // Every task at the loop's rate; the order is the data flow (DESIGN.md §2).
+  // Every task at the loop's rate; the order is the data flow (DESIGN.md §2). The B-scan is what
+  // the trainee watches: after two skipped frames it runs whatever the time (it may lag, never
+  // freeze); the 3D view may wait longer.
   return {{
-      {kSimulation, 0.0, budgets.simulation_budget_us, 0, true, &FrameLoop::simulate, this},
-      {kBscan, 0.0, budgets.bscan_budget_us, 1, false, &FrameLoop::bscan, this},
-      {kView, 0.0, budgets.view_budget_us, 2, false, &FrameLoop::view, this},
-      {kRender, 0.0, budgets.render_budget_us, 3, true, &FrameLoop::render, this},
+      {kSimulation, 0.0, budgets.simulation_budget_us, 0, true, &FrameLoop::simulate, this, 0},
+      {kBscan, 0.0, budgets.bscan_budget_us, 1, false, &FrameLoop::bscan, this, 2},
+      {kView, 0.0, budgets.view_budget_us, 2, false, &FrameLoop::view, this, 5},
+      {kRender, 0.0, budgets.render_budget_us, 3, true, &FrameLoop::render, this, 0},
   }};
 }
 

@@ -97,8 +97,9 @@ Script make_script(const HeadlessRunOptions& options, const config::CaseScan& sc
 
 std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal::Clock& clock,
                                    hal::JobSystem& jobs) {
-  const config::AppSettings settings =
+  config::AppSettings settings =
       options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
+  if (options.method) settings.sim.method = *options.method;
   const TissueCase tissue = load_tissue_case(options.case_dir);
   const Script script = make_script(options, tissue.settings.scan, tissue.settings.probe.depth_mm);
   drivers::sim_probe::ScriptedProbe probe(script.keyframes);

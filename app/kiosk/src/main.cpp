@@ -54,9 +54,9 @@ int main(int argc, char** argv) {
                  "press over the case's vein and artery and write force and lumen areas to this "
                  "CSV (headless)");
   app.add_option("--method", study_method,
-                 "deformation method for --compression-study: exact, pcg, corotational, "
-                 "msds-explicit, msds-implicit, hyperelastic")
-      ->capture_default_str();
+                 "deformation method: exact, pcg, corotational, msds-explicit, msds-implicit, "
+                 "hyperelastic (headless runs: overrides the settings' [sim] method; "
+                 "--compression-study: exact unless given)");
   app.add_option("--study-step-mm", study_step_mm, "press step of --compression-study, mm")
       ->check(CLI::Range(0.01, 10.0))
       ->capture_default_str();
@@ -110,6 +110,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!config_path.empty()) options.app_config = config_path;
+  if (app.count("--method") > 0) {
+    options.method = ultrasim::sim::engine_from_key(study_method);
+    if (!options.method) {
+      std::cerr << "ultrasim-kiosk: unknown --method '" << study_method
+                << "'; one of exact, pcg, corotational, msds-explicit, msds-implicit, "
+                   "hyperelastic\n";
+      return 2;
+    }
+  }
   try {
     namespace posix = ultrasim::drivers::posix;
     const posix::MonotonicClock clock;

@@ -68,7 +68,8 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   for (std::size_t i = 0; i < r.tasks.size(); ++i) {
     const sched::TaskStats& t = r.tasks[i];
     out << (i ? ",\n    " : "\n    ") << quoted(std::string(t.name)) << ": {\"runs\": " << t.runs
-        << ", \"slips\": " << t.slips << ", \"overruns\": " << t.overruns << ", \"time\": ";
+        << ", \"slips\": " << t.slips << ", \"overruns\": " << t.overruns
+        << ", \"forced_runs\": " << t.forced_runs << ", \"time\": ";
     write_stats(out, t.time);
     out << "}";
   }

@@ -176,8 +176,22 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   const std::optional<sim::ProbeCollider> collider = probe_collider();
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
   if (stitched_ != nullptr) {
-    // Small enough for std::function's local buffer: no allocation per frame.
-    const auto time_left = [this, deadline_us] { return clock_.now_us() < deadline_us; };
+    // Another batch of sub-volumes starts only if one as long as the last still ends by the
+    // deadline (the first is measured with the touched sub-volumes' batches before it, which
+    // can only overestimate it).
+    struct BatchClock {
+      const hal::Clock& clock;
+      hal::TimestampUs deadline_us;
+      hal::TimestampUs last_call_us;
+      bool may_start_another() {
+        const hal::TimestampUs now = clock.now_us();
+        const std::int64_t last_batch_us = now - last_call_us;
+        last_call_us = now;
+        return now + last_batch_us < deadline_us;
+      }
+    } batches{clock_, deadline_us, t0};
+    // One pointer: small enough for std::function's local buffer, so no allocation per frame.
+    const auto time_left = [&batches] { return batches.may_start_another(); };
     outcome.sim = stitched_->step_within(
         probe, frame_dt_s,
         deadline_us < 0 ? std::function<bool()>{} : std::function<bool()>{time_left});

@@ -73,12 +73,19 @@ TickReport Scheduler::tick() {
     const hal::TimestampUs task_start_us = clock_.now_us();
     const std::int64_t time_left_us =
         settings_.frame_budget_us - (task_start_us - start_us) - slot.reserved_after_us;
+    const bool starved = slot.spec.max_consecutive_slips > 0 &&
+                         slot.consecutive_slips >= slot.spec.max_consecutive_slips;
     if (!slot.spec.mandatory && slot.spec.budget_us > time_left_us) {
-      // Stays due: it is tried again next tick, and every skipped due tick is a slip.
-      ++stats.slips;
-      ++report.tasks_skipped;
-      continue;
+      if (!starved) {
+        // Stays due: it is tried again next tick, and every skipped due tick is a slip.
+        ++stats.slips;
+        ++slot.consecutive_slips;
+        ++report.tasks_skipped;
+        continue;
+      }
+      ++stats.forced_runs;
     }
+    slot.consecutive_slips = 0;
     slot.spec.run(slot.spec.context, TaskTick{ticks_, start_us, time_left_us});
     const std::int64_t took_us = clock_.now_us() - task_start_us;
     stats.time.record(took_us);

@@ -270,9 +270,15 @@ void MsdsEngine::scale_masses_to_time_step() {
 
 void MsdsEngine::set_anchor_springs(std::span<const AnchorSpring> anchors) {
   check_anchor_springs(anchors, node_count());
-  for (const auto& a : anchors_) anchor_stiffness_mn_per_mm_[a.node] = 0.0;
+  for (const auto& a : anchors_) {
+    anchor_stiffness_mn_per_mm_[a.node] = 0.0;
+    anchor_of_node_[a.node] = -1;
+  }
   anchors_.assign(anchors.begin(), anchors.end());
-  for (const auto& a : anchors_) anchor_stiffness_mn_per_mm_[a.node] = a.stiffness_mn_per_mm;
+  for (std::size_t i = 0; i < anchors_.size(); ++i) {
+    anchor_stiffness_mn_per_mm_[anchors_[i].node] = anchors_[i].stiffness_mn_per_mm;
+    anchor_of_node_[anchors_[i].node] = static_cast<int>(i);
+  }
   if (physical_mass_kg_.empty()) return;
   // A node's stable step depends on its total stiffness: an anchor (with its damping, like a
   // spring's) adds k to its Gershgorin row. Only nodes whose anchor changed are rescaled.
@@ -358,6 +364,7 @@ void MsdsEngine::size_buffers() {
   touching_only_.assign(rest_.size(), 0);
   contact_normal_.assign(rest_.size(), Eigen::Vector3d::UnitZ());
   anchor_stiffness_mn_per_mm_.assign(rest_.size(), 0.0);
+  anchor_of_node_.assign(rest_.size(), -1);
   mass_scaled_for_anchor_mn_per_mm_.assign(rest_.size(), 0.0);
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
     spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
@@ -841,7 +848,7 @@ void MsdsEngine::add_anchor_forces(int begin, int end, float* force_x, float* fo
                        [](const AnchorSpring& anchor, int node) { return anchor.node < node; });
   for (; a != anchors_.end() && a->node < end; ++a) {
     Eigen::Vector3d elastic, damping;
-    anchor_force(a->node, elastic, damping);
+    anchor_force(*a, elastic, damping);
     const Eigen::Vector3d f = elastic + damping;
     const int i = a->node - begin;
     force_x[i] += static_cast<float>(f.x());
@@ -852,16 +859,19 @@ void MsdsEngine::add_anchor_forces(int begin, int end, float* force_x, float* fo
 
 void MsdsEngine::anchor_force(int node, Eigen::Vector3d& elastic_mn,
                               Eigen::Vector3d& damping_mn) const {
-  const double k = anchor_stiffness_mn_per_mm_[node];
-  if (k == 0.0) {
+  if (anchor_of_node_[node] < 0) {
     elastic_mn.setZero();
     damping_mn.setZero();
     return;
   }
-  const auto a =
-      std::lower_bound(anchors_.begin(), anchors_.end(), node,
-                       [](const AnchorSpring& anchor, int n) { return anchor.node < n; });
-  elastic_mn = k * (a->target_mm - position_[node]);
+  anchor_force(anchors_[anchor_of_node_[node]], elastic_mn, damping_mn);
+}
+
+void MsdsEngine::anchor_force(const AnchorSpring& anchor, Eigen::Vector3d& elastic_mn,
+                              Eigen::Vector3d& damping_mn) const {
+  const int node = anchor.node;
+  const double k = anchor.stiffness_mn_per_mm;
+  elastic_mn = k * (anchor.target_mm - position_[node]);
   // Forward Euler needs the anchor damped like a spring (c = k β) or its mode grows; that drag on
   // the node's own velocity slows the seam (a pressed seam ends ~50 % further from one piece), so
   // the implicit integrator, stable without it, leaves the zero-length spring undamped (as

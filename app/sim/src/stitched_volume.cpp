@@ -142,6 +142,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
                                   "msds-explicit or msds-implicit");
     }
     sub.previous_positions_mm = mesh.rest_positions_mm;
+    sub.positions_mm = sub.engine->deformed_positions_mm();
     const Eigen::Vector3i blocks =
         (sub.box.nodes.array() + kReachBlockNodes - 1) / kReachBlockNodes;
     sub.node_block.resize(sub.global_node.size());
@@ -198,7 +199,7 @@ void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
 }
 
 Eigen::Vector3d StitchedVolume::copy_position(const Copy& c) const {
-  return subs_[c.sub].engine->deformed_positions_mm()[c.local];
+  return subs_[c.sub].positions_mm[c.local];
 }
 
 EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt_s) {
@@ -339,6 +340,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
     const auto before = sub.engine->deformed_positions_mm();
     std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
     sub.last_stats = sub.engine->step(probe, frame_dt_s);
+    sub.positions_mm = sub.engine->deformed_positions_mm();
     sub.stepped = true;
   };
   if (jobs_ != nullptr && subs.size() > 1) {
@@ -422,7 +424,8 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
       local.segment<3>(3 * static_cast<Eigen::Index>(l)) = u_mm.segment<3>(3 * sub.global_node[l]);
     }
     sub.engine->set_displacements_mm(local);
-    const auto x = sub.engine->deformed_positions_mm();
+    sub.positions_mm = sub.engine->deformed_positions_mm();
+    const auto x = sub.positions_mm;
     std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
     sub.asleep = false;
     sub.stepped = true;

@@ -103,6 +103,28 @@ TEST(Scheduler, ATaskThatDoesNotFitIsSkippedCountedAsASlipAndRunsWhenThereIsTime
   EXPECT_EQ(surfaces.ticks.at(0).time_left_us, 16'667 - 2'000);
 }
 
+TEST(Scheduler, AnOptionalTaskStarvedForItsSlipLimitRunsAnywayAndIsCounted) {
+  hal::ManualClock clock;
+  FakeTask solve{&clock, 12'000, "solve"}, bscan{&clock, 3'000, "bscan"};
+  TaskSpec bscan_spec = spec_for(bscan, 0, 6'000, 1);
+  bscan_spec.max_consecutive_slips = 2;
+  const std::vector<TaskSpec> table{spec_for(solve, 0, 12'000, 0, true), bscan_spec};
+  Scheduler scheduler(clock, table, {60.0, 16'667});
+  // Never enough time: skipped twice, forced on the third tick, then the count starts again.
+  std::vector<int> ran;
+  for (int t = 0; t < 6; ++t) ran.push_back(scheduler.tick().tasks_run);
+  EXPECT_EQ(ran, (std::vector<int>{1, 1, 2, 1, 1, 2}));
+  const TaskStats& s = *scheduler.find("bscan");
+  EXPECT_EQ(s.slips, 4);
+  EXPECT_EQ(s.runs, 2);
+  EXPECT_EQ(s.forced_runs, 2);
+  // A run with time to spare resets the count without being forced.
+  solve.cost_us = 1'000;
+  scheduler.tick();
+  EXPECT_EQ(scheduler.find("bscan")->forced_runs, 2);
+  EXPECT_EQ(scheduler.find("bscan")->runs, 3);
+}
+
 TEST(Scheduler, MandatoryTasksRunEvenWhenTheBudgetIsSpentAndTheMissIsCounted) {
   hal::ManualClock clock;
   FakeTask solve{&clock, 20'000, "solve"}, render{&clock, 3'000, "render"},

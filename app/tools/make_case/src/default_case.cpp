@@ -95,12 +95,13 @@ GeneratedCase generate_default_case(const DefaultCaseSettings& settings) {
   return out;
 }
 
-void write_case_folder(const std::filesystem::path& dir, const GeneratedCase& generated) {
+void write_case_folder(const std::filesystem::path& dir, const GeneratedCase& generated,
+                       const ArmCaseLayout& layout) {
   std::filesystem::create_directories(dir);
   imaging::write_volume(dir / "volume.mha", generated.echo, true);
   imaging::write_volume(dir / "labels.mha", generated.labels, true);
   const std::string toml =
-      default_case_toml(generated.labels.world_min_mm(), generated.labels.world_max_mm());
+      default_case_toml(generated.labels.world_min_mm(), generated.labels.world_max_mm(), layout);
   const auto path = dir / "case.toml";
   std::ofstream file(path, std::ios::binary | std::ios::trunc);
   file << toml;

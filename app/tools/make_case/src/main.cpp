@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   double spacing_mm = 0.25;
   double speckle_exponent = ultrasim::tools::DefaultCaseSettings{}.speckle_exponent;
   bool quiet = false;
+  bool large = false;
   std::filesystem::path from_volume;
   std::string name = "real-volume";
   app.add_option("--out", out_dir, "output folder (created if missing)")->required();
@@ -28,6 +29,9 @@ int main(int argc, char** argv) {
                  "speckle compression: 1 = raw Rayleigh envelope, <1 = log-compressed look")
       ->check(CLI::Range(0.1, 1.0));
   app.add_flag("--quiet", quiet, "print nothing on success");
+  app.add_flag("--large", large,
+               "the large case instead: the arm over 120 x 120 x 45 mm at 0.5 mm (unless "
+               "--spacing-mm), meshed as 25 stitched sub-volumes of 15^3 nodes");
   app.add_option("--from-volume", from_volume,
                  "make a one-tissue case around this real volume (.mha) instead")
       ->check(CLI::ExistingFile);
@@ -49,10 +53,17 @@ int main(int argc, char** argv) {
     }
     const auto start = std::chrono::steady_clock::now();
     ultrasim::tools::DefaultCaseSettings settings;
+    ultrasim::tools::ArmCaseLayout layout;
+    if (large) {
+      settings.min_mm = {-60.0, -60.0, 0.0};
+      settings.max_mm = {60.0, 60.0, 45.0};
+      if (app.count("--spacing-mm") == 0) spacing_mm = 0.5;
+      layout = ultrasim::tools::large_arm_layout();
+    }
     settings.spacing_mm = spacing_mm;
     settings.speckle_exponent = speckle_exponent;
     const auto generated = ultrasim::tools::generate_default_case(settings);
-    ultrasim::tools::write_case_folder(out_dir, generated);
+    ultrasim::tools::write_case_folder(out_dir, generated, layout);
     const double elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!quiet) {

@@ -8,12 +8,14 @@
 
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::kiosk {
 
 struct HeadlessRunOptions {
   std::filesystem::path case_dir;
   std::optional<std::filesystem::path> app_config;  // app.toml; defaults when absent
+  std::optional<sim::EngineKind> method;            // overrides the settings' [sim] method
   std::filesystem::path out_dir;                    // created if missing
   std::string script = "sweep-press";               // the scripted probe's motion
   // How the frame threads run (realtime scheduling, pinning, locked memory), as the composition

@@ -43,6 +43,9 @@ struct TaskSpec {
   // The work: called on the ticking thread with `context`. Must not be null.
   void (*run)(void* context, const TaskTick& tick) = nullptr;
   void* context = nullptr;
+  // An optional task skipped this many due ticks in a row runs on the next one whatever the
+  // time (counted in TaskStats::forced_runs): the B-scan may lag, never freeze. 0: no limit.
+  int max_consecutive_slips = 0;
 };
 
 struct SchedulerSettings {
@@ -53,10 +56,11 @@ struct SchedulerSettings {
 // One task's accounting since the scheduler started.
 struct TaskStats {
   std::string_view name;
-  FrameTimeStats time;        // duration of each run, against the task's budget
-  std::int64_t runs = 0;      // times it ran
-  std::int64_t slips = 0;     // due ticks it was skipped for lack of time
-  std::int64_t overruns = 0;  // runs that took longer than its budget
+  FrameTimeStats time;           // duration of each run, against the task's budget
+  std::int64_t runs = 0;         // times it ran
+  std::int64_t slips = 0;        // due ticks it was skipped for lack of time
+  std::int64_t overruns = 0;     // runs that took longer than its budget
+  std::int64_t forced_runs = 0;  // runs without the time, after max_consecutive_slips slips
 };
 
 // What one tick did.
@@ -92,6 +96,7 @@ class Scheduler {
     std::int64_t period_ticks = 1;
     std::int64_t next_due_tick = 0;
     std::int64_t reserved_after_us = 0;  // this tick: budgets of due mandatory tasks after it
+    int consecutive_slips = 0;
   };
 
   const hal::Clock& clock_;

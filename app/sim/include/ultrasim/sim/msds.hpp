@@ -289,6 +289,8 @@ class MsdsEngine final : public DeformationEngine {
 
   // The anchor's elastic and damping force on a node (zero without one), at the current state.
   void anchor_force(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn) const;
+  void anchor_force(const AnchorSpring& anchor, Eigen::Vector3d& elastic_mn,
+                    Eigen::Vector3d& damping_mn) const;
   // Adds the anchors' forces on nodes [begin, end) to the explicit pass's float block forces.
   void add_anchor_forces(int begin, int end, float* force_x, float* force_y, float* force_z) const;
   // Explicit Euler with mass scaling: a node's mass for its springs' and anchor's stiffness.
@@ -334,6 +336,7 @@ class MsdsEngine final : public DeformationEngine {
   // its mass was last scaled for.
   std::vector<AnchorSpring> anchors_;
   std::vector<double> anchor_stiffness_mn_per_mm_;
+  std::vector<int> anchor_of_node_;  // index in anchors_, −1: none
   std::vector<double> mass_scaled_for_anchor_mn_per_mm_;
   // Node → springs (CSR), each entry with the spring's other node, in spring order.
   std::vector<int> adjacency_begin_;

@@ -93,6 +93,8 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<int> shared_local;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
+    // The engine's deformed positions (refreshed whenever it changes them).
+    std::span<const Eigen::Vector3d> positions_mm;
     // Blocks of a few nodes per axis (per local node, its block) and each block's bounding box
     // at the last step: the probe's reach is tested per block, so a probe near a sub-volume's
     // edge does not count as touching it.

@@ -9,6 +9,7 @@
 
 #include "ultrasim/imaging/volume.hpp"
 #include "ultrasim/tools/make_case/arm_phantom.hpp"
+#include "ultrasim/tools/make_case/case_toml.hpp"
 #include "ultrasim/tools/make_case/speckle.hpp"
 
 namespace ultrasim::tools {
@@ -43,6 +44,8 @@ GeneratedCase generate_default_case(const DefaultCaseSettings& settings = {});
 
 // Writes <dir>/volume.mha, <dir>/labels.mha (zlib MetaImage) and <dir>/case.toml, creating
 // `dir` if needed. Throws imaging::MetaImageError or std::runtime_error on I/O failure.
-void write_case_folder(const std::filesystem::path& dir, const GeneratedCase& generated);
+// `layout` names the case and lays out its mesh and scan (default: the default case's).
+void write_case_folder(const std::filesystem::path& dir, const GeneratedCase& generated,
+                       const ArmCaseLayout& layout = {});
 
 }  // namespace ultrasim::tools
