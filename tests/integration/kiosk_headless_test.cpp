@@ -16,9 +16,13 @@
 #include <string>
 #include <vector>
 
+#include "report_json.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
+using ultrasim::testing::json_number;
+using ultrasim::testing::read_text;
 
 struct GreyImage {
   int width = 0, height = 0;
@@ -40,24 +44,6 @@ GreyImage read_grey_png(const fs::path& path) {
     ADD_FAILURE() << path << ": " << image.message;
   }
   return out;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// The first number after "key": in the JSON text, from `from` on.
-double json_number(const std::string& json, const std::string& key, std::size_t from = 0) {
-  std::smatch m;
-  const std::string tail = json.substr(from);
-  if (!std::regex_search(tail, m, std::regex("\"" + key + "\": (-?[0-9.eE+-]+)"))) {
-    ADD_FAILURE() << "no \"" << key << "\" in the report";
-    return -1;
-  }
-  return std::stod(m[1]);
 }
 
 // Dark area (mm²) inside a window of the B-scan given in probe-plane mm (lateral x from the

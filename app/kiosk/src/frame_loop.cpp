@@ -6,7 +6,7 @@ namespace ultrasim::kiosk {
 
 FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
                      const sched::FrameBudgetSettings& budgets)
-    : session_(session),
+    : session_(&session),
       renderer_(renderer),
       clock_(clock),
       simulation_budget_us_(budgets.simulation_budget_us),
@@ -35,20 +35,20 @@ void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
   // past the deadline only the sub-volumes the probe touches still step.
   const std::int64_t allowed_us =
       std::clamp<std::int64_t>(tick.time_left_us, 0, loop->simulation_budget_us_);
-  loop->outcome_ = loop->session_.simulate(loop->sample_, loop->clock_.now_us() + allowed_us);
+  loop->outcome_ = loop->session_->simulate(loop->sample_, loop->clock_.now_us() + allowed_us);
 }
 
 void FrameLoop::bscan(void* self, const sched::TaskTick&) {
-  static_cast<FrameLoop*>(self)->session_.update_bscan();
+  static_cast<FrameLoop*>(self)->session_->update_bscan();
 }
 
 void FrameLoop::view(void* self, const sched::TaskTick&) {
-  static_cast<FrameLoop*>(self)->session_.update_view();
+  static_cast<FrameLoop*>(self)->session_->update_view();
 }
 
 void FrameLoop::render(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
-  loop->renderer_.render(loop->session_, tick.tick_index);
+  loop->renderer_.render(*loop->session_, tick.tick_index);
 }
 
 }  // namespace ultrasim::kiosk

@@ -37,7 +37,7 @@ Script sweep_press(const config::CaseScan& scan, double depth_mm) {
   script.keyframes.push_back({at(0.75), pressed, last.orientation, "frozen"});
   script.keyframes.push_back({at(1.0), last.position_mm, last.orientation, ""});
   script.keyframes.push_back({at(1.5), last.position_mm, last.orientation, "deeper"});
-  script.controls = {{at(0.0), true, depth_mm, {}}, {at(1.0), false, 1.5 * depth_mm, {}}};
+  script.controls = {{at(0.0), true, depth_mm, {}, {}}, {at(1.0), false, 1.5 * depth_mm, {}, {}}};
   return script;
 }
 
@@ -57,7 +57,7 @@ Script compare_methods(const config::CaseScan& scan) {
                       {at(1.5), middle + scan.press_depth_mm * down, level, ""}};
   double t = 1.5;
   for (const auto method : kLiveMethods) {
-    script.controls.push_back({at(t), false, 0.0, method});
+    script.controls.push_back({at(t), false, 0.0, method, {}});
     t += 1.0;
     script.keyframes.push_back(
         {at(t), middle + scan.press_depth_mm * down, level, std::string(sim::engine_key(method))});
@@ -82,12 +82,23 @@ class OffscreenFrameRenderer final : public FrameRenderer {
   render::SceneRenderer& renderer_;
 };
 
-Script make_script(const HeadlessRunOptions& options, const config::CaseScan& scan,
-                   double depth_mm) {
+// The kiosk's default for a case: the first live method that runs on it.
+sim::EngineKind first_method_for(const TissueCase& tissue) {
+  for (const auto method : kLiveMethods) {
+    if (method_runs_on(tissue, method)) return method;
+  }
+  return sim::EngineKind::kMsdsExplicit;
+}
+
+Script make_script(const HeadlessRunOptions& options, std::span<const TissueCase> tissues) {
+  const config::CaseScan& scan = tissues.front().settings.scan;
+  const double depth_mm = tissues.front().settings.probe.depth_mm;
   if (options.script == "sweep-press") return sweep_press(scan, depth_mm);
   if (options.script == "compare-methods") return compare_methods(scan);
   if (options.script == "soak") {
-    return soak_script(scan, depth_mm, options.soak_seconds, options.soak_seed);
+    std::vector<SoakCase> cases;
+    for (const auto& t : tissues) cases.push_back({t.settings.scan, t.settings.probe.depth_mm});
+    return soak_script(cases, options.soak_seconds, options.soak_seed);
   }
   throw std::invalid_argument("unknown script '" + options.script +
                               "'; available: sweep-press, compare-methods, soak");
@@ -100,30 +111,35 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   config::AppSettings settings =
       options.app_config ? config::load_app_settings(*options.app_config) : config::AppSettings{};
   if (options.method) settings.sim.method = *options.method;
-  const TissueCase tissue = load_tissue_case(options.case_dir);
-  const Script script = make_script(options, tissue.settings.scan, tissue.settings.probe.depth_mm);
+  std::vector<TissueCase> tissues;
+  tissues.push_back(load_tissue_case(options.case_dir));
+  for (const auto& dir : options.more_cases) tissues.push_back(load_tissue_case(dir));
+  const TissueCase& tissue = tissues.front();
+  const Script script = make_script(options, tissues);
   drivers::sim_probe::ScriptedProbe probe(script.keyframes);
 
   render::OffscreenDisplay display(settings.display);
   render::SceneRenderer renderer(display);
   std::filesystem::create_directories(options.out_dir);  // only once everything could start
-  Session session(tissue, settings, clock, jobs);
+  // Restarted on every pick from the case list.
+  auto session_owner = std::make_unique<Session>(tissue, settings, clock, jobs);
+  Session* session = session_owner.get();
 
   RunReport report;
   report.case_name = tissue.settings.name;
   report.renderer = display.renderer_name();
   report.mesh_nodes = tissue.mesh.node_count();
   report.mesh_tets = tissue.mesh.tet_count();
-  report.bscan_width_px = session.bscan_width_px();
-  report.bscan_height_px = session.bscan_height_px();
-  report.method = std::string(sim::engine_key(session.method()));
+  report.bscan_width_px = session->bscan_width_px();
+  report.bscan_height_px = session->bscan_height_px();
+  report.method = std::string(sim::engine_key(session->method()));
   report.threads = jobs.thread_count();
   report.realtime = options.realtime;
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
-  report.slicer = session.slicer_name();
+  report.slicer = session->slicer_name();
   const std::int64_t budget_us = settings.frame.budget_us;
   OffscreenFrameRenderer frame_renderer(display, renderer);
-  FrameLoop loop(session, frame_renderer, clock, settings.frame);
+  FrameLoop loop(*session, frame_renderer, clock, settings.frame);
 
   // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
   // the session (and its screenshots) are the same on every run.
@@ -137,7 +153,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
 
   const std::int64_t frames_per_second = std::max<std::int64_t>(1, 1'000'000 / budget_us);
   if (options.script == "soak") {
-    report.memory_baseline_frame = static_cast<std::int64_t>(kSoakWarmUpS * 1e6) / budget_us;
+    report.memory_baseline_frame =
+        static_cast<std::int64_t>(soak_warm_up_s(tissues.size()) * 1e6) / budget_us;
   }
 
   // One frame past the script's end, so its last moment is shown too.
@@ -146,18 +163,47 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     const hal::TimestampUs now = script_clock.now_us();
     while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
       const ControlEvent& event = script.controls[next_control];
-      if (event.method) {
-        if (*event.method != session.method()) report.method_switches += 1;
-        session.switch_method(*event.method);
+      if (event.case_index) {
+        // The old session goes first: a kiosk holds one case's engines at a time.
+        config::AppSettings case_settings = settings;
+        case_settings.sim.method = event.method.value_or(session->method());
+        const TissueCase& next = tissues.at(static_cast<std::size_t>(*event.case_index));
+        if (!method_runs_on(next, case_settings.sim.method)) {
+          case_settings.sim.method = first_method_for(next);
+          report.method_switches_refused += 1;
+        }
+        session_owner.reset();
+        session_owner = std::make_unique<Session>(next, case_settings, clock, jobs);
+        session = session_owner.get();
+        loop.switch_session(*session);
+        BscanControls controls = session->controls();
+        controls.depth_mm = event.depth_mm;
+        session->set_controls(controls);
+        report.case_switches += 1;
+      } else if (event.method) {
+        if (!method_runs_on(session->tissue(), *event.method)) {
+          report.method_switches_refused += 1;
+        } else {
+          if (*event.method != session->method()) report.method_switches += 1;
+          session->switch_method(*event.method);
+        }
       } else {
-        BscanControls controls = session.controls();
+        BscanControls controls = session->controls();
         controls.frozen = event.frozen;
         controls.depth_mm = event.depth_mm;
-        session.set_controls(controls);
+        session->set_controls(controls);
       }
       ++next_control;
     }
-    loop.run_frame(probe.latest(now));
+    const std::string method_key(sim::engine_key(session->method()));
+    const sched::TickReport tick = loop.run_frame(probe.latest(now));
+    auto by_method = std::ranges::find(report.frame_by_method, method_key,
+                                       [](const auto& entry) { return entry.first; });
+    if (by_method == report.frame_by_method.end()) {
+      report.frame_by_method.emplace_back(method_key, sched::FrameTimeStats(budget_us));
+      by_method = report.frame_by_method.end() - 1;
+    }
+    by_method->second.record(tick.duration_us);
     const FrameOutcome& outcome = loop.outcome();
     if (options.resident_memory_kib && frame % frames_per_second == 0) {
       report.memory_kib.emplace_back(frame, options.resident_memory_kib());
@@ -167,6 +213,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.poses_rejected += outcome.pose_rejected;
     report.frames_in_contact += outcome.in_contact;
     report.diverged_frames += outcome.sim.diverged;
+    report.probe_held_frames += outcome.probe_held;
     report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
     report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);
@@ -185,11 +232,11 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       snap.marker = markers[next_marker].second;
       snap.frame = frame;
       snap.contact_force_n = outcome.sim.contact_force_n;
-      snap.method = std::string(sim::engine_key(session.method()));
+      snap.method = std::string(sim::engine_key(session->method()));
       snap.bscan_png = "bscan-" + snap.marker + ".png";
       snap.screen_png = "screen-" + snap.marker + ".png";
-      render::write_png_grey(options.out_dir / snap.bscan_png, session.bscan(),
-                             session.bscan_width_px(), session.bscan_height_px());
+      render::write_png_grey(options.out_dir / snap.bscan_png, session->bscan(),
+                             session->bscan_width_px(), session->bscan_height_px());
       display.read_pixels_into(screen);
       render::write_png(options.out_dir / snap.screen_png, screen);
       report.snapshots.push_back(snap);

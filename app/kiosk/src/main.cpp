@@ -31,6 +31,9 @@ int main(int argc, char** argv) {
   app.add_option("--case", options.case_dir, "case folder (holding case.toml)")
       ->capture_default_str();
   app.add_option("--config", config_path, "app settings (TOML); defaults when omitted");
+  app.add_option("--also-case", options.more_cases,
+                 "more cases for the case list: --script soak picks among --case and these "
+                 "(repeatable)");
   app.add_option("--script", options.script, "scripted probe motion for headless runs")
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "output folder for PNGs and report.json")

@@ -1,5 +1,6 @@
 #include "ultrasim/kiosk/run_report.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -30,10 +31,18 @@ void write_stats(std::ostream& out, const sched::FrameTimeStats& s) {
 }  // namespace
 
 std::int64_t RunReport::memory_growth_kib() const {
+  std::vector<std::int64_t> after;
   for (const auto& [sample_frame, kib] : memory_kib) {
-    if (sample_frame >= memory_baseline_frame) return memory_kib.back().second - kib;
+    if (sample_frame >= memory_baseline_frame) after.push_back(kib);
   }
-  return 0;
+  const std::size_t quarter = after.size() / 4;
+  if (quarter == 0) return 0;
+  const auto median = [](std::vector<std::int64_t> v) {
+    std::ranges::nth_element(v, v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2));
+    return v[v.size() / 2];
+  };
+  return median({after.end() - static_cast<std::ptrdiff_t>(quarter), after.end()}) -
+         median({after.begin(), after.begin() + static_cast<std::ptrdiff_t>(quarter)});
 }
 
 void write_report_json(const std::filesystem::path& path, const RunReport& r) {
@@ -49,9 +58,13 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"surface_triangles\": " << r.surface_triangles << ",\n"
       << "  \"sim\": {\"method\": " << quoted(r.method)
       << ", \"method_switches\": " << r.method_switches
+      << ", \"method_switches_refused\": " << r.method_switches_refused
+      << ", \"case_switches\": " << r.case_switches
       << ", \"max_contact_force_n\": " << r.max_contact_force_n
-      << ", \"diverged_frames\": " << r.diverged_frames << ", \"substepped\": " << r.recoveries[1]
-      << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
+      << ", \"diverged_frames\": " << r.diverged_frames
+      << ", \"probe_held_frames\": " << r.probe_held_frames
+      << ", \"substepped\": " << r.recoveries[1] << ", \"reset\": " << r.recoveries[2]
+      << ", \"kept_last_good\": " << r.recoveries[3]
       << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
       << "  \"stitching\": {\"stitched_frames\": " << r.stitching.frames
       << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped
@@ -63,6 +76,12 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"poses_rejected\": " << r.poses_rejected << ",\n"
       << "  \"frame_time\": ";
   write_stats(out, r.frame);
+  out << ",\n  \"frame_time_by_method\": {";
+  for (std::size_t i = 0; i < r.frame_by_method.size(); ++i) {
+    out << (i ? ",\n    " : "\n    ") << quoted(r.frame_by_method[i].first) << ": ";
+    write_stats(out, r.frame_by_method[i].second);
+  }
+  out << "\n  }";
   // Per task: its run times against its own budget, and what the scheduler did with it.
   out << ",\n  \"tasks\": {";
   for (std::size_t i = 0; i < r.tasks.size(); ++i) {

@@ -74,10 +74,28 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
   update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
 }
 
+namespace {
+
+bool split_into_sub_volumes(const TissueCase& tissue) {
+  const auto& parts = tissue.settings.mesh.sub_volumes;
+  return parts[0] * parts[1] * parts[2] > 1;
+}
+
+}  // namespace
+
+bool method_runs_on(const TissueCase& tissue, sim::EngineKind method) {
+  return !split_into_sub_volumes(tissue) || sim::stitchable(method);
+}
+
 std::unique_ptr<sim::DeformationEngine> Session::make_method(sim::EngineKind method) const {
   const config::CaseMesh& mesh = tissue_.settings.mesh;
-  const bool split = mesh.sub_volumes[0] * mesh.sub_volumes[1] * mesh.sub_volumes[2] > 1;
-  if (split && sim::stitchable(method)) {
+  if (!method_runs_on(tissue_, method)) {
+    throw std::invalid_argument(
+        std::string(sim::engine_key(method)) + " cannot run on case '" + tissue_.settings.name +
+        "': it is split into sub-volumes ([mesh] sub_volumes), and only "
+        "pcg, msds-explicit and msds-implicit run stitched ([sim] method, or --method)");
+  }
+  if (split_into_sub_volumes(tissue_)) {
     sim::StitchingSettings stitching = settings_.stitching;
     stitching.sub_volumes = mesh.sub_volumes;
     stitching.overlap_nodes = mesh.overlap_nodes;
@@ -97,6 +115,7 @@ void Session::switch_method(sim::EngineKind method) {
   }
   engine_ = slot.get();
   stitched_ = dynamic_cast<sim::StitchedVolume*>(engine_);
+  refused_depth_mm_.reset();  // another method may take the press
 }
 
 std::optional<sim::ProbeCollider> Session::probe_collider() const {
@@ -173,7 +192,22 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
       last_update_us_ < 0 ? 1.0 / 60.0
                           : std::clamp(static_cast<double>(t0 - last_update_us_) * 1e-6, 1e-4, 0.1);
   last_update_us_ = t0;
-  const std::optional<sim::ProbeCollider> collider = probe_collider();
+  std::optional<sim::ProbeCollider> collider = probe_collider();
+  // A press the method refused as too deep for it (Recovery::kKeptLastGood) is not tried again
+  // every frame while the probe stays as deep: each try costs the method several attempts (a
+  // frame of up to five frames' work) to show the same last good shape. Until the probe comes
+  // back up, the tissue is pressed where the method last took the probe, and a new try is made
+  // a few times a second (a sweep may find a pose the method can take).
+  constexpr double kRetryAfterLiftMm = 0.5;
+  constexpr int kRetryEveryFrames = 15;
+  if (refused_depth_mm_ &&
+      (!collider || pose_->position_mm.z() < *refused_depth_mm_ - kRetryAfterLiftMm)) {
+    refused_depth_mm_.reset();
+  }
+  if (refused_depth_mm_ && accepted_collider_ && ++frames_since_refusal_ < kRetryEveryFrames) {
+    collider = accepted_collider_;
+    outcome.probe_held = true;
+  }
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
   if (stitched_ != nullptr) {
     // Another batch of sub-volumes starts only if one as long as the last still ends by the
@@ -198,6 +232,13 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
     outcome.stitch = stitched_->last_stitch_stats();
   } else {
     outcome.sim = engine_->step(probe, frame_dt_s);
+  }
+  if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider && !outcome.probe_held) {
+    refused_depth_mm_ = pose_->position_mm.z();
+    frames_since_refusal_ = 0;
+  } else if (!outcome.sim.diverged && !outcome.probe_held) {
+    accepted_collider_ = collider;
+    refused_depth_mm_.reset();
   }
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;

@@ -278,10 +278,18 @@ TEST_F(StitchedSessionTest, StitchableMethodsRunStitchedAndMatchOnePiece) {
   EXPECT_LT(outcome.stitch->max_gap_mm, 0.2);
   EXPECT_NEAR(largest_displacement(stitched), largest_displacement(one_piece),
               0.02 * largest_displacement(one_piece));
-  // The exact FEM cannot be stitched: it runs in one piece, from the stitched shape.
-  stitched.switch_method(sim::EngineKind::kExactFem);
-  EXPECT_EQ(stitched.method_name(), "exact FEM");
-  EXPECT_FALSE(stitched.update(pose_at(2.0)).stitch.has_value());
+  // The exact FEM cannot be stitched: refused, naming the case, and nothing changes.
+  EXPECT_FALSE(method_runs_on(stitched_, sim::EngineKind::kExactFem));
+  EXPECT_TRUE(method_runs_on(one_piece_, sim::EngineKind::kExactFem));
+  try {
+    stitched.switch_method(sim::EngineKind::kExactFem);
+    FAIL() << "the exact FEM was built on a split case";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("exact cannot run on case 'tiny'"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(stitched.method(), sim::EngineKind::kMsdsImplicit);
+  EXPECT_TRUE(stitched.update(pose_at(2.0)).stitch.has_value());
 }
 
 TEST_F(StitchedSessionTest, APastDeadlineStepsOnlyTheTouchedSubVolumes) {

@@ -34,6 +34,10 @@ class FrameLoop {
   static constexpr const char* kRender = "render";
 
   // `session`, `renderer` and `clock` must outlive the loop. Allocates.
+  // A pick from the case list: the frames from now on run `session` (which must outlive the
+  // loop, or the next switch); the scheduler's accounting goes on.
+  void switch_session(Session& session) { session_ = &session; }
+
   FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
             const sched::FrameBudgetSettings& budgets);
   FrameLoop(const FrameLoop&) = delete;
@@ -54,7 +58,7 @@ class FrameLoop {
   static void render(void* self, const sched::TaskTick& tick);
   std::array<sched::TaskSpec, 4> table(const sched::FrameBudgetSettings& budgets);
 
-  Session& session_;
+  Session* session_;
   FrameRenderer& renderer_;
   const hal::Clock& clock_;
   std::int64_t simulation_budget_us_;

@@ -5,6 +5,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/hal/job_system.hpp"
@@ -14,6 +15,8 @@ namespace ultrasim::kiosk {
 
 struct HeadlessRunOptions {
   std::filesystem::path case_dir;
+  // The rest of the case list: script "soak" picks among case_dir and these.
+  std::vector<std::filesystem::path> more_cases;
   std::optional<std::filesystem::path> app_config;  // app.toml; defaults when absent
   std::optional<sim::EngineKind> method;            // overrides the settings' [sim] method
   std::filesystem::path out_dir;                    // created if missing

@@ -47,16 +47,24 @@ struct RunReport {
   std::int64_t poses_rejected = 0;
   std::int64_t frames_in_contact = 0;
   std::int64_t method_switches = 0;
+  std::int64_t method_switches_refused = 0;  // methods that cannot run on the case (stitched)
+  std::int64_t case_switches = 0;
   std::int64_t diverged_frames = 0;
+  std::int64_t probe_held_frames = 0;        // a refused press held where the method last took it
   std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
   int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;
   StitchSummary stitching;
-  sched::FrameTimeStats frame{0};       // whole frames against the frame budget
+  sched::FrameTimeStats frame{0};  // whole frames against the frame budget
+  // Whole frames by the deformation method that ran them (engine_key), in the order first used:
+  // the trainee's choice of method decides most of a frame's time.
+  std::vector<std::pair<std::string, sched::FrameTimeStats>> frame_by_method;
   std::vector<sched::TaskStats> tasks;  // the frame loop's tasks, in the order they run
   std::vector<Snapshot> snapshots;
-  // Resident memory, KiB, once a second of the script: (frame, KiB). Growth: the last sample
-  // less the first taken after `memory_baseline_frame` (a warm-up), or 0.
+  // Resident memory, KiB, once a second of the script: (frame, KiB). Growth: the median of the
+  // last quarter of the samples taken after `memory_baseline_frame` (a warm-up) less that of the
+  // first quarter, so that a cache filling or a case's buffers coming and going do not count
+  // and a leak, growing all along, does; 0 with fewer than 4 samples.
   std::vector<std::pair<std::int64_t, std::int64_t>> memory_kib;
   std::int64_t memory_baseline_frame = 0;
   std::int64_t memory_growth_kib() const;

@@ -12,12 +12,15 @@
 namespace ultrasim::kiosk {
 
 // A change of the scanner's controls at a moment of a script, as a trainee's button press: the
-// freeze and depth controls, or (when `method` is set) the live switch of deformation method.
+// freeze and depth controls, or (when `method` is set) the live switch of deformation method, or
+// (when `case_index` is set) a pick from the case list: the session restarts on that case, with
+// `method` if given.
 struct ControlEvent {
   hal::TimestampUs time_us = 0;
   bool frozen = false;
   double depth_mm = 0.0;
   std::optional<sim::EngineKind> method;
+  std::optional<int> case_index;
 };
 
 struct Script {

@@ -32,6 +32,9 @@ struct FrameOutcome {
   bool in_contact = false;     // the probe touches the tissue, so there is an image
   sim::EngineStepStats sim;
   std::optional<sim::StitchStepStats> stitch;  // when the method runs stitched
+  // The method refused a press as too deep for it, and the probe is still that deep: the tissue
+  // was pressed where the method last took the probe (see Session::simulate).
+  bool probe_held = false;
 };
 
 // The scanner's controls a trainee can change while scanning.
@@ -42,6 +45,11 @@ struct BscanControls {
   double depth_mm = 40.0;                                      // [10, 300]
   bool frozen = false;  // image held; the tissue still follows the probe
 };
+
+// Whether `method` can run on the case: on a case split into sub-volumes ([mesh] sub_volumes),
+// only the methods that can be stitched (sim::stitchable); the others would solve the whole
+// large region in one piece, which takes minutes to build.
+bool method_runs_on(const TissueCase& tissue, sim::EngineKind method);
 
 // One trainee's scanning session on one case: probe pose in, deformed tissue and B-scan out.
 // The frame thread calls update() then frame_input(); nothing else touches it.
@@ -94,8 +102,8 @@ class Session {
   // The deformation method in use, and a live switch to another: it starts from the current
   // shape (at rest: no velocity). The first switch to a method builds it (the exact FEM's
   // factorisation takes about a second on the default case); later switches are instant. On a
-  // case split into sub-volumes ([mesh] sub_volumes) the methods that can be stitched
-  // (sim::stitchable) run stitched, the others in one piece.
+  // case split into sub-volumes ([mesh] sub_volumes) the methods run stitched; those that cannot
+  // be (method_runs_on) are refused.
   // Throws std::invalid_argument if the method cannot be built on this case (nothing changes).
   // Call between frames, from the frame thread.
   sim::EngineKind method() const { return engine_->kind(); }
@@ -133,6 +141,11 @@ class Session {
   std::optional<imaging::FastSlicer> fast_slicer_;            // raster grids, slicer = fast
   std::optional<imaging::PublishedSlicer> published_slicer_;  // raster grids, slicer = published
   std::optional<hal::PoseSample> pose_;                       // last good pose
+  // Where the method last took the probe, and the face's depth (z) at the press it refused
+  // since, with the frames since that refusal.
+  std::optional<sim::ProbeCollider> accepted_collider_;
+  std::optional<double> refused_depth_mm_;
+  int frames_since_refusal_ = 0;
   bool in_contact_ = false;
   bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;
