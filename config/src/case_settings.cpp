@@ -97,7 +97,7 @@ TableSchema<CaseMesh> mesh_schema() {
               "average of its tissues by volume."));
   t.add(field("sub_volumes", &S::sub_volumes, FixedArray<IntegerIn<int>, 3>{IntegerIn<int>{1, 64}},
               "Volume stitching: sub-volumes along x, y, z ([1, 1, 1]: one piece). Methods pcg, "
-              "msds-explicit and msds-implicit then run stitched; the others in one piece."));
+              "msds-explicit and msds-implicit then run stitched; the others are refused."));
   t.add(field("overlap_nodes", &S::overlap_nodes, IntegerIn<int>{1, 8},
               "Node layers neighbouring sub-volumes share (published: 2)."));
   t.check(check_region);

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "median.hpp"
+#include "stitch_scene.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/stitched_volume.hpp"
@@ -29,47 +30,27 @@ namespace {
 
 using namespace ultrasim;
 
-constexpr double kSpacingMm = 2.0;
 constexpr double kFrameDtS = 1.0 / 60.0;
 constexpr int kWarmUpFrames = 20;  // the press, untimed
 
-struct Region {
-  geometry::GridSpec grid;
-  geometry::TetMesh mesh;
-  std::vector<sim::Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
+using bench::Region;
 
-// side × side × depth nodes: fat over muscle, fixed at the deepest face. Built once per size.
+// side × side × depth nodes, built once per size (set-up is not what is timed).
 const Region& region(int side, int depth) {
   static std::map<int, Region> regions;
-  Region& r = regions[side * 1000 + depth];
-  if (!r.mesh.tets.empty()) return r;
-  r.grid.nodes = {side, side, depth};
-  r.grid.spacing_mm = Eigen::Vector3d::Constant(kSpacingMm);
-  r.mesh = geometry::make_grid_tet_mesh(r.grid);
-  const auto& p = r.mesh.rest_positions_mm;
-  for (const auto& t : r.mesh.tets) {
-    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
-    r.materials.push_back(z < 8 ? sim::Material{2, "fat", 20.0, 0.45}
-                                : sim::Material{3, "muscle", 50.0, 0.45});
-  }
-  const double deepest = kSpacingMm * (depth - 1);
-  r.fixed.assign(p.size(), 0);
-  for (std::size_t n = 0; n < p.size(); ++n) r.fixed[n] = p[n].z() == deepest;
-  return r;
+  auto [it, inserted] = regions.try_emplace(side * 1000 + depth);
+  if (inserted) it->second = bench::make_region(side, depth);
+  return it->second;
 }
 
-// The published sphere, pressed 4 mm over 20 frames at the region's middle, then sliding ±2 mm
-// along x at 0.2 mm a frame.
+// Pressed 4 mm over 20 frames at the region's middle, then sliding ±2 mm along x at 0.2 mm a
+// frame.
 sim::ProbeCollider probe_at(const Region& r, int frame) {
-  constexpr double kRadiusMm = 8.0;
-  const double middle = 0.5 * kSpacingMm * (r.grid.nodes.x() - 1);
+  const double middle = 0.5 * bench::kStitchSpacingMm * (r.grid.nodes.x() - 1);
   const double depth = std::min(4.0, 0.2 * frame);
   const int phase = std::max(0, frame - kWarmUpFrames) % 40;
   const double x = phase < 20 ? -2.0 + 0.2 * phase : 2.0 - 0.2 * (phase - 20);
-  return sim::ProbeCollider::sphere(
-      sim::SphereCollider{Eigen::Vector3d(middle + x, middle, depth - kRadiusMm), kRadiusMm});
+  return bench::sphere_probe(middle + x, middle, depth);
 }
 
 sim::EngineKind method(benchmark::State& state) {

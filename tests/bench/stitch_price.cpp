@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "stitch_scene.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/stitched_volume.hpp"
@@ -39,7 +40,6 @@ namespace {
 
 using namespace ultrasim;
 
-constexpr double kSpacingMm = 2.0;
 constexpr double kFrameDtS = 1.0 / 60.0;
 constexpr int kPressFrames = 20, kSlideFrames = 60, kHoldFrames = 120;
 constexpr int kSide = 52, kDepth = 12;
@@ -47,54 +47,24 @@ constexpr int kPlacedFrames = 200;
 // Where sub-volumes (2, 2), (3, 2), (2, 3) and (3, 3) overlap: grid nodes 30 and 31 on x and y.
 constexpr double kCornerMm = 61.0;
 
-struct Region {
-  geometry::GridSpec grid;
-  geometry::TetMesh mesh;
-  std::vector<sim::Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
+using bench::max_norm;
+using bench::Region;
 
-Region make_region() {
-  Region r;
-  r.grid.nodes = {kSide, kSide, kDepth};
-  r.grid.spacing_mm = Eigen::Vector3d::Constant(kSpacingMm);
-  r.mesh = geometry::make_grid_tet_mesh(r.grid);
-  const auto& p = r.mesh.rest_positions_mm;
-  for (const auto& t : r.mesh.tets) {
-    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
-    r.materials.push_back(z < 8 ? sim::Material{2, "fat", 20.0, 0.45}
-                                : sim::Material{3, "muscle", 50.0, 0.45});
-  }
-  r.fixed.assign(p.size(), 0);
-  for (std::size_t n = 0; n < p.size(); ++n) r.fixed[n] = p[n].z() == kSpacingMm * (kDepth - 1);
-  return r;
+sim::ProbeCollider placed_probe() {
+  return bench::sphere_probe(kCornerMm, kCornerMm, 4.0);
 }
 
 // Pressed at the middle of sub-volume (2, 2), then slid to x = +8 mm (across the seam at the
 // next sub-volume's first node, 20 mm on) and back, then still.
-constexpr double kRadiusMm = 8.0;
-
-sim::ProbeCollider placed_probe() {
-  return sim::ProbeCollider::sphere(
-      sim::SphereCollider{Eigen::Vector3d(kCornerMm, kCornerMm, 4.0 - kRadiusMm), kRadiusMm});
-}
-
 sim::ProbeCollider probe_at(int frame) {
-  const double middle = 0.5 * kSpacingMm * (kSide - 1);
+  const double middle = 0.5 * bench::kStitchSpacingMm * (kSide - 1);
   const double depth = std::min(4.0, 0.2 * frame);
   double x = 0.0;
   if (frame >= kPressFrames && frame < kPressFrames + kSlideFrames) {
     const int f = frame - kPressFrames;
     x = f < kSlideFrames / 2 ? 16.0 * f / kSlideFrames : 16.0 * (kSlideFrames - f) / kSlideFrames;
   }
-  return sim::ProbeCollider::sphere(
-      sim::SphereCollider{Eigen::Vector3d(middle + x, middle, depth - kRadiusMm), kRadiusMm});
-}
-
-double max_norm(const Eigen::VectorXd& u) {
-  double m = 0.0;
-  for (Eigen::Index i = 0; i < u.size(); i += 3) m = std::max(m, u.segment<3>(i).norm());
-  return m;
+  return bench::sphere_probe(middle + x, middle, depth);
 }
 
 struct Variant {
@@ -188,7 +158,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: stitch_price --out DIR\n");
     return 2;
   }
-  const Region r = make_region();
+  const Region r = bench::make_region(kSide, kDepth);
   drivers::posix::ThreadPool jobs(2);
   std::ofstream frames(dir + "/stitch-frames.csv");
   std::ofstream stiffness(dir + "/stitch-stiffness.csv");

@@ -115,6 +115,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   tissues.push_back(load_tissue_case(options.case_dir));
   for (const auto& dir : options.more_cases) tissues.push_back(load_tissue_case(dir));
   const TissueCase& tissue = tissues.front();
+  // The settings' method where the case can run it, else the first live method it can (a split
+  // case runs the stitchable ones); a method asked for on the command line is kept, and refused
+  // with a clear error by the session if the case cannot run it.
+  if (!options.method && !method_runs_on(tissue, settings.sim.method)) {
+    settings.sim.method = first_method_for(tissue);
+  }
   const Script script = make_script(options, tissues);
   drivers::sim_probe::ScriptedProbe probe(script.keyframes);
 

@@ -233,12 +233,16 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   } else {
     outcome.sim = engine_->step(probe, frame_dt_s);
   }
-  if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider && !outcome.probe_held) {
-    refused_depth_mm_ = pose_->position_mm.z();
-    frames_since_refusal_ = 0;
-  } else if (!outcome.sim.diverged && !outcome.probe_held) {
-    accepted_collider_ = collider;
-    refused_depth_mm_.reset();
+  if (!outcome.probe_held) {
+    if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider) {
+      refused_depth_mm_ = pose_->position_mm.z();
+      frames_since_refusal_ = 0;
+    } else if (!outcome.sim.diverged) {
+      accepted_collider_ = collider;
+      refused_depth_mm_.reset();
+    } else {
+      frames_since_refusal_ = 0;  // a try that failed otherwise waits as a refusal does
+    }
   }
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;

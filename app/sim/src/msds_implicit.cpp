@@ -178,7 +178,7 @@ double MsdsEngine::anchor_system_diagonal(int node, double h) const {
 Eigen::Vector3d MsdsEngine::system_row_times(int node, const std::vector<Eigen::Vector3d>& p,
                                              double h) const {
   // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not. The anchor's row is
-  // (h c + h² k) I: its target is fixed within the step.
+  // h² k I (undamped; its target is fixed within the step).
   Eigen::Vector3d sum = (mass_kg_[node] + anchor_system_diagonal(node, h)) * p[node];
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
     sum += spring_block_[adjacency_spring_[e]].times(p[node] - p[adjacency_other_[e]]);

@@ -291,8 +291,11 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
       schedule_.push_back(best);
     }
   }
-  std::stable_sort(schedule_.begin() + touched, schedule_.end(),
-                   [&](int a, int b) { return priority(a) > priority(b); });
+  // Ties in sub-volume order; std::sort, because std::stable_sort takes a buffer from the heap.
+  std::sort(schedule_.begin() + touched, schedule_.end(), [&](int a, int b) {
+    const double pa = priority(a), pb = priority(b);
+    return pa > pb || (pa == pb && a < b);
+  });
   return touched;
 }
 

@@ -232,7 +232,7 @@ TEST_F(SessionTest, EveryMethodCanBeSwitchedToLiveAndStartsFromTheShapeShown) {
 }
 
 // The tiny case on a 13 × 9 × 9 grid split in three along x: the stitchable methods run stitched,
-// the others in one piece, and a past deadline steps only the sub-volumes the probe may touch.
+// the others are refused, and a past deadline steps only the sub-volumes the probe may touch.
 class StitchedSessionTest : public ::testing::Test {
  protected:
   static std::string split_toml(const std::string& split) {

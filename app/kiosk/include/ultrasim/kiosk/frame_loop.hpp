@@ -34,12 +34,12 @@ class FrameLoop {
   static constexpr const char* kRender = "render";
 
   // `session`, `renderer` and `clock` must outlive the loop. Allocates.
+  FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
+            const sched::FrameBudgetSettings& budgets);
+
   // A pick from the case list: the frames from now on run `session` (which must outlive the
   // loop, or the next switch); the scheduler's accounting goes on.
   void switch_session(Session& session) { session_ = &session; }
-
-  FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock& clock,
-            const sched::FrameBudgetSettings& budgets);
   FrameLoop(const FrameLoop&) = delete;
   FrameLoop& operator=(const FrameLoop&) = delete;
 
