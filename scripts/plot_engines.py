@@ -255,6 +255,7 @@ VARIANT_STYLES = {
     "selective": ("selective, overlap stiffness split", "-"),
     "all": ("every sub-volume, overlap stiffness split", "--"),
     "published-overlap": ("selective, overlap at full stiffness (published)", ":"),
+    "4-exchanges": ("selective, seams exchanged 4 times a frame", "-."),
 }
 
 

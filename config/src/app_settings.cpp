@@ -217,6 +217,9 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               IntegerIn<int>{0, 4096},
               "Selective: sub-volumes beyond the touched and their neighbours, hardest pulled by "
               "their seams first (published: 1)."));
+  t.add(field("exchanges_per_frame", &S::exchanges_per_frame, IntegerIn<int>{1, 64},
+              "Seam exchanges per frame: each sub-volume's frame in this many parts, anchors "
+              "refreshed between them; must divide [msds] steps_per_frame."));
   t.add(field("sleep_force_mn", &S::sleep_force_mn, RealIn::closed(0.0, 1e6),
               "A sub-volume out of reach sleeps when its seams pull less than this (mN) ..."));
   t.add(field("sleep_motion_mm", &S::sleep_motion_mm, RealIn::closed(0.0, 1e3),

@@ -14,9 +14,10 @@
 // shows what stitching itself costs once converged.
 //   frames:    per frame, for each scenario, method and variant (selective or all; the
 //              overlap's stiffness split among its copies, or each copy at full stiffness as
-//              published), the displacement error against one piece (max norm over the largest
-//              one-piece displacement), the largest gap between copies of a shared node before
-//              the midpoint display, the strongest seam pull and the sub-volumes stepped.
+//              published; seams exchanged once or 4 times a frame), the displacement error against
+//              one piece (max norm over the largest one-piece displacement), the largest gap
+//              between copies of a shared node before the midpoint display, the strongest seam pull
+//              and the sub-volumes stepped.
 //   stiffness: the seam spring's stiffness per modulus from 1 to 200 mm, placed scenario after
 //              its hold: the gap and the error.
 // A study, not a benchmark: nothing is timed and nothing here asserts (stitched_volume_test
@@ -71,12 +72,14 @@ struct Variant {
   const char* name;
   bool selective;
   bool split_overlap_stiffness;
+  int exchanges_per_frame;
 };
 
 constexpr Variant kVariants[] = {
-    {"selective", true, true},
-    {"all", false, true},
-    {"published-overlap", true, false},
+    {"selective", true, true, 1},
+    {"all", false, true, 1},
+    {"published-overlap", true, false, 1},
+    {"4-exchanges", true, true, 4},
 };
 
 constexpr sim::EngineKind kMethods[] = {sim::EngineKind::kPcgFem, sim::EngineKind::kMsdsExplicit,
@@ -101,6 +104,7 @@ void frames_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
         stitching.sub_volumes = {5, 5, 1};
         stitching.selective = v.selective;
         stitching.split_overlap_stiffness = v.split_overlap_stiffness;
+        stitching.exchanges_per_frame = v.exchanges_per_frame;
         sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
         for (int f = 0; f < total; ++f) {
           const auto probe = probe_for(f);

@@ -223,7 +223,7 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
         last_call_us = now;
         return now + last_batch_us < deadline_us;
       }
-    } batches{clock_, deadline_us, t0};
+    } batches{clock_, t0 + (deadline_us - t0) / stitched_->exchanges_per_frame(), t0};
     // One pointer: small enough for std::function's local buffer, so no allocation per frame.
     const auto time_left = [&batches] { return batches.may_start_another(); };
     outcome.sim = stitched_->step_within(

@@ -67,6 +67,13 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   if (stitching.extra_sub_volumes_per_frame < 0) {
     throw std::invalid_argument("StitchedVolume: extra_sub_volumes_per_frame must be >= 0");
   }
+  if (stitching.exchanges_per_frame < 1 ||
+      engine_settings.msds.steps_per_frame % stitching.exchanges_per_frame != 0) {
+    throw std::invalid_argument("StitchedVolume: exchanges_per_frame (" +
+                                std::to_string(stitching.exchanges_per_frame) +
+                                ") must be >= 1 and divide the MSDS's steps_per_frame (" +
+                                std::to_string(engine_settings.msds.steps_per_frame) + ")");
+  }
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   build_copies(tet_materials);
   name_ = "stitched " + std::string(subs_.front().engine->name()) + " (" +
@@ -125,6 +132,13 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     // sub-volume that refused and one that did not. Each keeps the one-piece count instead.
     const double tet_share = static_cast<double>(mesh_.tet_count()) / mesh.tet_count();
     EngineSettings settings = engine_settings;
+    // A frame in exchanges_per_frame parts: the same steps and iterations in all.
+    const int parts = settings_.exchanges_per_frame;
+    settings.msds.steps_per_frame /= parts;
+    settings.msds.implicit_steps_per_frame =
+        std::max(1, settings.msds.implicit_steps_per_frame / parts);
+    settings.fem.pcg_iterations_per_frame =
+        std::max(1, settings.fem.pcg_iterations_per_frame / parts);
     for (double* fraction :
          {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
           &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {
@@ -213,17 +227,26 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
   const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
   // The sub-volumes the probe may touch always step: skipping one would let the probe pass
   // through the tissue.
+  // The first exchange picks which sub-volumes step this frame; the others step the same ones.
+  const int parts = settings_.exchanges_per_frame;
+  const double part_dt_s = frame_dt_s / parts;
   int next = 0;
   while (next < touched) {
     const int count = std::min(batch, touched - next);
-    step_batch(std::span(schedule_).subspan(next, count), probe, frame_dt_s);
+    step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true);
     next += count;
   }
   const int scheduled = static_cast<int>(schedule_.size());
   while (next < scheduled && (!may_continue || may_continue())) {
     const int count = std::min(batch, scheduled - next);
-    step_batch(std::span(schedule_).subspan(next, count), probe, frame_dt_s);
+    step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true);
     next += count;
+  }
+  for (int part = 1; part < parts; ++part) {
+    for (int first = 0; first < next; first += batch) {
+      step_batch(std::span(schedule_).subspan(first, std::min(batch, next - first)), probe,
+                 part_dt_s, false);
+    }
   }
   EngineStepStats out;
   for (const auto& sub : subs_) {
@@ -334,15 +357,30 @@ void StitchedVolume::refresh_anchors(int s) {
 }
 
 void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* probe,
-                                double frame_dt_s) {
+                                double frame_dt_s, bool first_part) {
   // Anchors first, from positions no sub-volume of the batch has moved yet: the batch's steps
   // are then independent and run in parallel.
   for (int s : subs) refresh_anchors(s);
   auto step_one = [&](int i) {
     SubVolume& sub = subs_[subs[i]];
-    const auto before = sub.engine->deformed_positions_mm();
-    std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
-    sub.last_stats = sub.engine->step(probe, frame_dt_s);
+    if (first_part) {
+      const auto before = sub.engine->deformed_positions_mm();
+      std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
+    }
+    const EngineStepStats s = sub.engine->step(probe, frame_dt_s);
+    if (first_part) {
+      sub.last_stats = s;
+    } else {
+      // The frame's stats: work summed, the latest contact, the worst of the rest.
+      EngineStepStats& f = sub.last_stats;
+      f.iterations += s.iterations;
+      f.relative_residual = s.relative_residual;
+      f.contact_nodes = s.contact_nodes;
+      f.contact_force_n = s.contact_force_n;
+      f.inverted_tets = std::max(f.inverted_tets, s.inverted_tets);
+      f.diverged = f.diverged || s.diverged;
+      if (severity(s.recovery) > severity(f.recovery)) f.recovery = s.recovery;
+    }
     sub.positions_mm = sub.engine->deformed_positions_mm();
     sub.stepped = true;
   };

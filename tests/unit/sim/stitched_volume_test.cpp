@@ -276,6 +276,34 @@ TEST(StitchedVolume, ImplicitMsdsMatchesOnePieceAtRestUnderAStillProbe) {
   EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 0.1);
 }
 
+TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  const ProbeCollider probe = sphere_probe(kSeamXmm + 1.0, 9.0, 2.0);
+  MsdsEngine one_piece(MsdsIntegrator::kImplicitEuler, r.mesh, r.materials, r.fixed,
+                       MsdsSettings{});
+  std::vector<Eigen::VectorXd> reference;
+  for (int f = 0; f < 6; ++f) {
+    one_piece.step(&probe, 1.0 / 60);
+    reference.push_back(one_piece.displacements_mm());
+  }
+  double error[2] = {0.0, 0.0};
+  for (int i = 0; i < 2; ++i) {
+    StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
+    stitching.exchanges_per_frame = i == 0 ? 1 : 10;
+    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, stitching,
+                            &jobs);
+    for (int f = 0; f < 6; ++f) stitched.step(&probe, 1.0 / 60);
+    error[i] =
+        max_difference(stitched.displacements_mm(), reference.back()) / max_norm(reference.back());
+  }
+  EXPECT_LT(error[1], 0.5 * error[0]) << error[0] << " with one exchange, " << error[1];
+  StitchingSettings three{.sub_volumes = {2, 1, 1}};
+  three.exchanges_per_frame = 3;  // does not divide the 20 MSDS steps of a frame
+  EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, three),
+               std::invalid_argument);
+}
+
 // A 4 × 4 split of a small slab: the probe in one corner.
 StitchedVolume make_four_by_four(const Region& r, hal::JobSystem* jobs, bool selective,
                                  int extra = 1) {

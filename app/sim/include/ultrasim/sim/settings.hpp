@@ -156,6 +156,11 @@ struct StitchingSettings {
   // first. false: every sub-volume every frame.
   bool selective = true;
   int extra_sub_volumes_per_frame = 1;
+  // Seam exchanges per frame: each sub-volume's frame is cut into this many parts (the MSDS's
+  // steps, the PCG FEM's iterations; the same work in all) and the seams' anchors are refreshed
+  // between them, so a disturbance crosses this many seams a frame (published: several
+  // iterations, then the stitching forces). Must divide MsdsSettings::steps_per_frame.
+  int exchanges_per_frame = 1;
   // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
   // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
   double sleep_force_mn = 0.05;

@@ -65,7 +65,9 @@ class StitchedVolume final : public DeformationEngine {
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // The same, in priority order: the sub-volumes the probe may touch (always), then the rest due
   // this frame, those pulled hardest by their seams first, in batches of one per job thread while
-  // may_continue() says there is time (an empty function: no limit). Stats: the sum of the
+  // may_continue() says there is time (an empty function: no limit); may_continue is asked during
+  // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
+  // every exchange (so give it 1/exchanges of the time left). Stats: the sum of the
   // sub-volumes' iterations, contact nodes and contact forces' magnitudes, the most inverted
   // tets of one, diverged if any did, and the strongest recovery.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
@@ -76,6 +78,7 @@ class StitchedVolume final : public DeformationEngine {
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
   const StitchStepStats& last_stitch_stats() const { return stats_; }
+  int exchanges_per_frame() const { return settings_.exchanges_per_frame; }
   const geometry::TetMesh& mesh() const { return mesh_; }
   int sub_volume_count() const { return static_cast<int>(subs_.size()); }
   const SubVolumeBox& box(int sub) const { return subs_[sub].box; }
@@ -128,7 +131,10 @@ class StitchedVolume final : public DeformationEngine {
   void refresh_anchors(int sub);
   // Whether the probe may touch a node of the sub-volume (its blocks' bounds at the last step).
   bool within_reach(const SubVolume& sub, const ProbeCollider& probe) const;
-  void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s);
+  // One part of a frame for each of `subs`, anchors first; `first_part`: the frame's first
+  // exchange (it keeps the positions the frame started from and starts the frame's stats).
+  void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
+                  bool first_part);
   // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
   // shown positions (copies' mean) and displacements.
   void finish_frame();
