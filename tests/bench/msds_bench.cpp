@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "engine_scene.hpp"
-#include "median.hpp"
+#include "frame_time_reporter.hpp"
 #include "naive_msds.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -100,16 +100,8 @@ BENCHMARK(BM_Engine)->Apply(engine_args)->Unit(benchmark::kMillisecond)->UseReal
 
 // The console output as usual, then per size the engine's median wall time per frame as a ratio
 // to the reference's of this run.
-class RatioReporter : public benchmark::ConsoleReporter {
+class RatioReporter : public bench::FrameTimeReporter {
  public:
-  void ReportRuns(const std::vector<Run>& runs) override {
-    ConsoleReporter::ReportRuns(runs);
-    for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration || run.error_occurred || run.iterations == 0) continue;
-      times_ms_[run.run_name.str()].push_back(1e3 * run.real_accumulated_time / run.iterations);
-    }
-  }
-
   void print_summary() const {
     std::printf("\nms per frame (medians), engine as a ratio to the naive reference of this run\n");
     std::printf("%-10s %12s %12s %9s %12s %9s\n", "grid", "naive ms", "1 thread ms", "ratio",
@@ -117,21 +109,14 @@ class RatioReporter : public benchmark::ConsoleReporter {
     for (const auto& s : kSizes) {
       const std::string size = "nx:" + std::to_string(s[0]) + "/ny:" + std::to_string(s[1]) +
                                "/nz:" + std::to_string(s[2]);
-      const double naive = median("BM_NaiveReference/" + size + "/real_time");
-      const double one = median("BM_Engine/" + size + "/threads:1/real_time");
-      const double two = median("BM_Engine/" + size + "/threads:2/real_time");
+      const double naive = median_ms("BM_NaiveReference/" + size + "/real_time");
+      const double one = median_ms("BM_Engine/" + size + "/threads:1/real_time");
+      const double two = median_ms("BM_Engine/" + size + "/threads:2/real_time");
       if (naive <= 0.0 || one <= 0.0 || two <= 0.0) continue;
       std::printf("%2dx%2dx%2d   %12.2f %12.3f %9.4f %12.3f %9.4f\n", s[0], s[1], s[2], naive, one,
                   one / naive, two, two / naive);
     }
   }
-
- private:
-  double median(const std::string& name) const {
-    const auto it = times_ms_.find(name);
-    return it == times_ms_.end() ? 0.0 : bench::median(it->second);
-  }
-  std::map<std::string, std::vector<double>> times_ms_;
 };
 
 // The times mean something only if both compute the same motion.

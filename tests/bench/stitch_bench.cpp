@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "median.hpp"
+#include "frame_time_reporter.hpp"
 #include "stitch_scene.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
@@ -141,24 +141,16 @@ BENCHMARK(BM_OnePiece)->Apply(one_piece_args)->Unit(benchmark::kMillisecond)->It
 BENCHMARK(BM_Stitched)->Apply(stitched_args)->Unit(benchmark::kMillisecond)->Iterations(60);
 
 // The console output as usual, then the published tables' figures as medians and ratios.
-class TableReporter : public benchmark::ConsoleReporter {
+class TableReporter : public bench::FrameTimeReporter {
  public:
-  void ReportRuns(const std::vector<Run>& runs) override {
-    ConsoleReporter::ReportRuns(runs);
-    for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration || run.error_occurred || run.iterations == 0) continue;
-      times_ms_[run.run_name.str()].push_back(1e3 * run.real_accumulated_time / run.iterations);
-    }
-  }
-
   void print_summary() const {
     std::printf("\nTable 5.1: ms per frame, 25 x 12^3 stitched (selective) / one 52x52x12 mesh\n");
     std::printf("%-14s %8s %11s %11s %7s\n", "method", "threads", "one-piece", "stitched", "ratio");
     for (int m : kMethods) {
       for (int t : {1, 2}) {
-        const double one = median("BM_OnePiece/method:" + std::to_string(m) +
-                                  "/side:52/depth:12/threads:" + std::to_string(t));
-        const double st = median(stitched_name(m, 5, 12, 1, t));
+        const double one = median_ms_by_prefix("BM_OnePiece/method:" + std::to_string(m) +
+                                               "/side:52/depth:12/threads:" + std::to_string(t));
+        const double st = median_ms_by_prefix(stitched_name(m, 5, 12, 1, t));
         if (one > 0.0 && st > 0.0) {
           std::printf("%-14s %8d %11.2f %11.2f %7.3f\n", key(m), t, one, st, st / one);
         }
@@ -173,8 +165,9 @@ class TableReporter : public benchmark::ConsoleReporter {
       for (int m : kMethods) {
         std::printf("%-14s", key(m));
         for (int n = 1; n <= 5; ++n) {
-          const double all = median(stitched_name(m, n, sub_nodes, 0, 2));
-          const double sel = n == 1 ? all : median(stitched_name(m, n, sub_nodes, 1, 2));
+          const double all = median_ms_by_prefix(stitched_name(m, n, sub_nodes, 0, 2));
+          const double sel =
+              n == 1 ? all : median_ms_by_prefix(stitched_name(m, n, sub_nodes, 1, 2));
           std::printf(" %8.2f (%7.2f)", sel, all);
         }
         std::printf("\n");
@@ -189,13 +182,6 @@ class TableReporter : public benchmark::ConsoleReporter {
            "/sub_nodes:" + std::to_string(sub_nodes) + "/selective:" + std::to_string(selective) +
            "/threads:" + std::to_string(threads);
   }
-  double median(const std::string& prefix) const {
-    for (const auto& [name, times] : times_ms_) {
-      if (name.rfind(prefix, 0) == 0) return bench::median(times);
-    }
-    return 0.0;
-  }
-  std::map<std::string, std::vector<double>> times_ms_;
 };
 
 }  // namespace
