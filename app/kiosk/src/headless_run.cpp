@@ -220,6 +220,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.frames_in_contact += outcome.in_contact;
     report.diverged_frames += outcome.sim.diverged;
     report.probe_held_frames += outcome.probe_held;
+    report.cut_short_frames += outcome.sim.cut_short;
     report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
     report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);

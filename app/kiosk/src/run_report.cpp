@@ -63,8 +63,8 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"max_contact_force_n\": " << r.max_contact_force_n
       << ", \"diverged_frames\": " << r.diverged_frames
       << ", \"probe_held_frames\": " << r.probe_held_frames
-      << ", \"substepped\": " << r.recoveries[1] << ", \"reset\": " << r.recoveries[2]
-      << ", \"kept_last_good\": " << r.recoveries[3]
+      << ", \"cut_short_frames\": " << r.cut_short_frames << ", \"substepped\": " << r.recoveries[1]
+      << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
       << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
       << "  \"stitching\": {\"stitched_frames\": " << r.stitching.frames
       << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped

@@ -209,30 +209,27 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
     outcome.probe_held = true;
   }
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
-  if (stitched_ != nullptr) {
-    // Another batch of sub-volumes starts only if one as long as the last still ends by the
-    // deadline (the first is measured with the touched sub-volumes' batches before it, which
-    // can only overestimate it).
-    struct BatchClock {
-      const hal::Clock& clock;
-      hal::TimestampUs deadline_us;
-      hal::TimestampUs last_call_us;
-      bool may_start_another() {
-        const hal::TimestampUs now = clock.now_us();
-        const std::int64_t last_batch_us = now - last_call_us;
-        last_call_us = now;
-        return now + last_batch_us < deadline_us;
-      }
-    } batches{clock_, t0 + (deadline_us - t0) / stitched_->exchanges_per_frame(), t0};
-    // One pointer: small enough for std::function's local buffer, so no allocation per frame.
-    const auto time_left = [&batches] { return batches.may_start_another(); };
-    outcome.sim = stitched_->step_within(
-        probe, frame_dt_s,
-        deadline_us < 0 ? std::function<bool()>{} : std::function<bool()>{time_left});
-    outcome.stitch = stitched_->last_stitch_stats();
-  } else {
-    outcome.sim = engine_->step(probe, frame_dt_s);
-  }
+  // The method's work that can wait (CG iterations, sub-volumes the probe does not touch) goes
+  // on only while a piece as long as the last still ends by the deadline (the first is measured
+  // with the frame's work before it, which can only overestimate it). A stitched method gives
+  // its first seam exchange 1/exchanges of the time: the sub-volumes it admits step in each.
+  struct BatchClock {
+    const hal::Clock& clock;
+    hal::TimestampUs deadline_us;
+    hal::TimestampUs last_call_us;
+    bool may_start_another() {
+      const hal::TimestampUs now = clock.now_us();
+      const std::int64_t last_batch_us = now - last_call_us;
+      last_call_us = now;
+      return now + last_batch_us < deadline_us;
+    }
+  } batches{clock_, t0 + (deadline_us - t0) / (stitched_ ? stitched_->exchanges_per_frame() : 1),
+            t0};
+  // One pointer: small enough for std::function's local buffer, so no allocation per frame.
+  const auto time_left = [&batches] { return batches.may_start_another(); };
+  outcome.sim = engine_->step_within(
+      probe, frame_dt_s, deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left});
+  if (stitched_ != nullptr) outcome.stitch = stitched_->last_stitch_stats();
   if (!outcome.probe_held) {
     if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider) {
       refused_depth_mm_ = pose_->position_mm.z();

@@ -478,7 +478,8 @@ void CorotationalFem::assemble_warped_system() {
   });
 }
 
-CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double tolerance) {
+CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double tolerance,
+                                                    const StepBudget& may_continue) {
   const int chunks = node_chunks();
   const auto node_range = [&](int chunk) {
     return std::pair{chunk * kNodesPerChunk, std::min(node_count(), (chunk + 1) * kNodesPerChunk)};
@@ -520,7 +521,12 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
   double rz = start[2];
   double residual = std::sqrt(start[0]);
   int it = 0;
+  bool cut_short = false;
   while (it < max_iterations && residual > tolerance * reference) {
+    if (it > 0 && may_continue && !may_continue()) {
+      cut_short = true;
+      break;
+    }
     // q = K p on free rows; p·q.
     for_each_chunk(chunks, [&](int chunk) {
       double pq = 0.0;
@@ -563,7 +569,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
     });
     ++it;
   }
-  return {it, residual / reference};
+  return {it, residual / reference, cut_short};
 }
 
 CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::VectorXd& u) const {
@@ -645,13 +651,20 @@ void CorotationalFem::update_deformed() {
   }
 }
 
-EngineStepStats CorotationalFem::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+EngineStepStats CorotationalFem::step(const ProbeCollider* probe, double frame_dt_s) {
+  return step_within(probe, frame_dt_s, {});
+}
+
+EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double /*frame_dt_s*/,
+                                             const StepBudget& may_continue) {
   u_before_step_ = u_;
   apply_constraints(probe);
   update_rotations();
   assemble_warped_system();
-  const PcgResult pcg = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
+  const PcgResult pcg =
+      run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance, may_continue);
   EngineStepStats stats;
+  stats.cut_short = pcg.cut_short;
   stats.iterations = pcg.iterations;
   stats.relative_residual = pcg.relative_residual;
   stats.contact_nodes = static_cast<int>(contacts_.size());
@@ -674,7 +687,7 @@ CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_m
     u_before_step_ = u_;  // the shape this outer iteration starts from
     update_rotations();
     assemble_warped_system();
-    pcg = run_pcg(max_pcg, kConvergedRelativeResidual);
+    pcg = run_pcg(max_pcg, kConvergedRelativeResidual, {});
     result.pcg_iterations += pcg.iterations;
     ++result.outer_iterations;
     if (!u_.allFinite()) break;

@@ -52,6 +52,7 @@ ExactFem::ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_
       node_constrained_index_(mesh.rest_positions_mm.size(), -1),
       in_contact_(mesh.rest_positions_mm.size(), 0),
       released_(mesh.rest_positions_mm.size(), 0),
+      deferred_(mesh.rest_positions_mm.size(), 0),
       deformed_(mesh.rest_positions_mm) {
   // The same model and stiffness as LinearFem: one model, two solvers.
   check_tet_model("ExactFem", mesh, tet_materials, fixed_nodes);
@@ -268,7 +269,16 @@ ExactFemStepStats ExactFem::solve(std::span<const NormalConstraint> constraints)
   return solve_rows(Field::kWhole);
 }
 
+bool ExactFem::defers(int node) {
+  if (!defer_uncached_ || candidate_slot_[node] >= 0 || node_slot_[node] >= 0) return false;
+  deferred_[node] = 1;
+  return true;
+}
+
 ExactFemStepStats ExactFem::solve_rows(Field field) {
+  if (defer_uncached_) {
+    std::erase_if(rows_, [this](const Row& row) { return defers(row.node); });
+  }
   ExactFemStepStats stats;
   ++frame_;
   for (int node : row_nodes_) node_constrained_index_[node] = -1;
@@ -458,7 +468,7 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
   rows_.resize(kept);
   // Nodes pushed into the probe by their neighbours: the closest surface point, as above.
   auto take_in_if_inside = [&](int node) {
-    if (in_contact_[node] || fixed_[node]) return;
+    if (in_contact_[node] || fixed_[node] || deferred_[node]) return;
     const SurfacePoint surface = probe.closest_surface_point(deformed_[node]);
     if ((deformed_[node] - surface.point_mm).dot(surface.normal) < -kSurfaceToleranceMm) {
       in_contact_[node] = 1;
@@ -474,8 +484,25 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
   return changed;
 }
 
-EngineStepStats ExactFem::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+EngineStepStats ExactFem::step(const ProbeCollider* probe, double frame_dt_s) {
+  return step_within(probe, frame_dt_s, {});
+}
+
+EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame_dt_s*/,
+                                      const StepBudget& may_continue) {
+  // One node's Green's functions are a full solve with the factor (~30 ms at 9k nodes): more
+  // than a frame's budget ever holds, so under a budget none is computed (the budget is not
+  // asked), and a node without them is not held.
+  defer_uncached_ = static_cast<bool>(may_continue);
+  std::fill(deferred_.begin(), deferred_.end(), 0);
   last_good_u_ = u_;
+  EngineStepStats out = solve_probe(probe);
+  defer_uncached_ = false;
+  out.cut_short = std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end();
+  return out;
+}
+
+EngineStepStats ExactFem::solve_probe(const ProbeCollider* probe) {
   EngineStepStats out;
   if (probe == nullptr) {
     rows_.clear();
@@ -491,7 +518,9 @@ EngineStepStats ExactFem::step(const ProbeCollider* probe, double /*frame_dt_s*/
       for (int i = 0; i < 3; ++i) rows_.push_back({c.node, Eigen::Vector3d::Unit(i), target[i]});
     }
     const ExactFemStepStats s = solve_rows(Field::kWhole);
-    for (const auto& c : contacts_) u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
+    for (const auto& c : contacts_) {
+      if (!deferred_[c.node]) u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
+    }
     update_deformed();
     out.iterations = 1;
     out.contact_nodes = s.contact_nodes;

@@ -195,7 +195,8 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
   }
 }
 
-FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
+FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
+                                const StepBudget& may_continue) {
   FemStepStats stats;
   // The free system is (K + A)_ff u_f = b with b = f_A − K_fc u_c (A, f_A: the anchor springs'
   // stiffness and load; no other external loads): measure the residual against |b|, so a warm
@@ -217,6 +218,10 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance) {
   double residual = r_.norm();
   int it = 0;
   while (it < max_iterations && residual > tolerance * reference) {
+    if (it > 0 && may_continue && !may_continue()) {
+      stats.cut_short = true;
+      break;
+    }
     system_times(p_, q_);
     q_.array() *= free_mask_.array();
     const double pq = p_.dot(q_);
@@ -261,26 +266,33 @@ void LinearFem::update_deformed() {
 
 FemStepStats LinearFem::step(const SphereCollider& collider) {
   const ProbeCollider probe = ProbeCollider::sphere(collider);
-  return step_probe(&probe);
+  return step_probe(&probe, {});
 }
 
 FemStepStats LinearFem::step_without_contact() {
-  return step_probe(nullptr);
+  return step_probe(nullptr, {});
 }
 
-FemStepStats LinearFem::step_probe(const ProbeCollider* probe) {
+FemStepStats LinearFem::step_probe(const ProbeCollider* probe, const StepBudget& may_continue) {
   apply_collider(probe);
-  FemStepStats stats = run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance);
+  FemStepStats stats =
+      run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance, may_continue);
   for (auto c : in_contact_) stats.contact_nodes += c;
   stats.contact_force_n = update_contact_forces();
   update_deformed();
   return stats;
 }
 
-EngineStepStats LinearFem::step(const ProbeCollider* probe, double /*frame_dt_s*/) {
+EngineStepStats LinearFem::step(const ProbeCollider* probe, double frame_dt_s) {
+  return step_within(probe, frame_dt_s, {});
+}
+
+EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*frame_dt_s*/,
+                                       const StepBudget& may_continue) {
   last_good_u_ = u_;
-  const FemStepStats fem = step_probe(probe);
+  const FemStepStats fem = step_probe(probe, may_continue);
   EngineStepStats out;
+  out.cut_short = fem.cut_short;
   out.iterations = fem.pcg_iterations;
   out.relative_residual = fem.relative_residual;
   out.contact_nodes = fem.contact_nodes;
@@ -317,7 +329,7 @@ void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
 }
 
 FemStepStats LinearFem::solve_to_tolerance(double tolerance, int max_iterations) {
-  FemStepStats stats = run_pcg(max_iterations, tolerance);
+  FemStepStats stats = run_pcg(max_iterations, tolerance, {});
   for (auto c : in_contact_) stats.contact_nodes += c;
   stats.contact_force_n = update_contact_forces();
   update_deformed();

@@ -483,6 +483,19 @@ EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s
   return stats;
 }
 
+EngineStepStats MsdsEngine::step_within(const ProbeCollider* probe, double frame_dt_s,
+                                        const StepBudget& may_continue) {
+  if (integrator_ == MsdsIntegrator::kExplicitEuler || !may_continue) {
+    return step(probe, frame_dt_s);
+  }
+  budget_ = &may_continue;
+  cut_short_ = false;
+  EngineStepStats stats = step(probe, frame_dt_s);
+  stats.cut_short = cut_short_;
+  budget_ = nullptr;
+  return stats;
+}
+
 EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
   position_frame_start_.copy_from(position_);
   velocity_frame_start_.copy_from(velocity_);
@@ -496,7 +509,14 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
   if (!attempt.accepted) {
     stats.diverged = true;
     stats.inverted_tets = attempt.inverted_tets;
+    // Under a budget, smaller steps are tried only while there is time (each try doubles the
+    // steps): past it, the frame keeps its start, as for a refused press.
+    bool out_of_time = false;
     for (int halvings = 1; halvings <= kMaxHalvings && !attempt.accepted; ++halvings) {
+      if (budget_ != nullptr && !(*budget_)()) {
+        out_of_time = cut_short_ = true;
+        break;
+      }
       position_.copy_from(position_frame_start_);
       velocity_.copy_from(velocity_frame_start_);
       sync_float_state();
@@ -504,7 +524,7 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
     }
     if (attempt.accepted) {
       stats.recovery = Recovery::kSubstepped;
-    } else if (!attempt.blew_up) {
+    } else if (!attempt.blew_up || out_of_time) {
       // Smaller steps cannot help a probe that folds tets under its rim (the spring lattice has
       // no volume stiffness to stop it): show the frame's start, at rest, rather than flicker
       // to the undeformed tissue.

@@ -120,6 +120,11 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // still probe. r / h is a force; kCgForceFloorMn of it in all is far below anything shown.
   const double target = std::max(kCgRelativeTolerance * reference, dt_s * kCgForceFloorMn);
   while (iteration < kMaxCgIterationsPerStep && residual > target) {
+    // Asked on the lead thread, between the team's stages.
+    if (iteration > 0 && budget_ != nullptr && !(*budget_)()) {
+      cut_short_ = true;
+      break;
+    }
     for_each_chunk(chunks, [&](int chunk) {
       double pq = 0.0;
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);

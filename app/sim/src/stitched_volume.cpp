@@ -221,7 +221,7 @@ EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt
 }
 
 EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double frame_dt_s,
-                                            const std::function<bool()>& may_continue) {
+                                            const StepBudget& may_continue) {
   for (auto& sub : subs_) sub.stepped = false;
   const int touched = plan_frame(probe);
   const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
@@ -260,6 +260,7 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
     out.diverged = out.diverged || s.diverged;
     if (severity(s.recovery) > severity(out.recovery)) out.recovery = s.recovery;
   }
+  out.cut_short = next < scheduled;
   finish_frame();
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;

@@ -231,6 +231,19 @@ TEST_F(SessionTest, EveryMethodCanBeSwitchedToLiveAndStartsFromTheShapeShown) {
   }
 }
 
+TEST_F(SessionTest, APastDeadlineCutsTheMethodsCgShortAndSaysSo) {
+  settings_.sim.method = sim::EngineKind::kPcgFem;
+  Session late(tissue_, settings_, clock_, jobs_);
+  Session on_time(tissue_, settings_, clock_, jobs_);
+  const FrameOutcome cut = late.simulate(pose_at(2.0), clock_.now_us());
+  EXPECT_TRUE(cut.sim.cut_short);
+  EXPECT_EQ(cut.sim.iterations, 1);
+  EXPECT_TRUE(cut.in_contact);
+  const FrameOutcome full = on_time.simulate(pose_at(2.0));
+  EXPECT_FALSE(full.sim.cut_short);
+  EXPECT_GT(full.sim.iterations, 1);
+}
+
 // The tiny case on a 13 × 9 × 9 grid split in three along x: the stitchable methods run stitched,
 // the others are refused, and a past deadline steps only the sub-volumes the probe may touch.
 class StitchedSessionTest : public ::testing::Test {

@@ -354,12 +354,12 @@ TEST(StitchedVolume, BudgetDefersAllButTheTouchedAndSelectiveOffStepsAll) {
   hal::InlineJobSystem jobs;
   const ProbeCollider probe = sphere_probe(5.0, 5.0, 1.5, 4.0);
   StitchedVolume budgeted = make_four_by_four(r, &jobs, true);
-  budgeted.step_within(&probe, 1.0 / 60, [] { return false; });
+  EXPECT_TRUE(budgeted.step_within(&probe, 1.0 / 60, [] { return false; }).cut_short);
   EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_stepped, 1);
   EXPECT_TRUE(budgeted.stepped(0));
   EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_deferred, 3);
   StitchedVolume all = make_four_by_four(r, &jobs, false);
-  all.step(&probe, 1.0 / 60);
+  EXPECT_FALSE(all.step(&probe, 1.0 / 60).cut_short);
   EXPECT_EQ(all.last_stitch_stats().sub_volumes_stepped, 16);
   EXPECT_EQ(all.last_stitch_stats().sub_volumes_asleep, 0);
 }

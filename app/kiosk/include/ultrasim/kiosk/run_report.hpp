@@ -51,6 +51,7 @@ struct RunReport {
   std::int64_t case_switches = 0;
   std::int64_t diverged_frames = 0;
   std::int64_t probe_held_frames = 0;        // a refused press held where the method last took it
+  std::int64_t cut_short_frames = 0;         // the frame's budget stopped the method's work early
   std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
   int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;

@@ -67,9 +67,9 @@ class Session {
 
   // update() in its three stages, for a frame scheduler that may skip the last two when the
   // frame has no time left for them (the screen then shows their previous results):
-  // 1. the sample, contact and deformation. A stitched method steps the sub-volumes the probe
-  //    may touch whatever the time, then the rest in priority order while the clock is before
-  //    `deadline_us` (< 0: no deadline, every due sub-volume);
+  // 1. the sample, contact and deformation, within `deadline_us` (< 0: none): the method's work
+  //    that can wait stops there (sim::DeformationEngine::step_within; a stitched method still
+  //    steps the sub-volumes the probe may touch, a CG at least one iteration);
   FrameOutcome simulate(const std::optional<hal::PoseSample>& sample,
                         hal::TimestampUs deadline_us = -1);
   // 2. the B-scan through the deformed tissue: held when frozen, blank when the probe is off;

@@ -73,6 +73,10 @@ class CorotationalFem final : public DeformationEngine {
   // resets to rest: with the probe still deep in the tissue, rest would put nodes far inside it.
   // frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  // Fewer CG iterations when the budget runs out (one at least); contacts, rotations and the
+  // assembly are done every frame.
+  EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                              const StepBudget& may_continue) override;
 
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
@@ -146,8 +150,9 @@ class CorotationalFem final : public DeformationEngine {
   struct PcgResult {
     int iterations = 0;
     double relative_residual = 0.0;
+    bool cut_short = false;  // the budget stopped it
   };
-  PcgResult run_pcg(int max_iterations, double tolerance);
+  PcgResult run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // |Σ reaction over the contacts|, N; stores each contact's push for the next frame.
   double measure_contact_forces();
   // Inverted tets (with a free node) a frame may leave: max_inverted_fraction of all tets.

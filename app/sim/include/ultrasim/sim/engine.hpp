@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -29,7 +30,14 @@ struct EngineStepStats {
   int inverted_tets = 0;           // tets with non-positive deformed volume after the step
   bool diverged = false;           // NaN, energy growth or inversion was detected this frame
   Recovery recovery = Recovery::kNone;
+  // step_within()'s budget ran out before the frame's work was done: the shape shown is less
+  // converged (CG stopped early, contacts not yet held, sub-volumes left for later), not wrong.
+  bool cut_short = false;
 };
+
+// Asked before each further piece of a frame's work that a method can leave for later frames;
+// false: stop there. An empty function never stops a step. Called on the thread that steps.
+using StepBudget = std::function<bool()>;
 
 // A zero-length spring pulling one node toward a target point (volume stitching: the target is the
 // node's twin in the overlapping sub-volume). The explicit MSDS damps it like the tissue's
@@ -53,6 +61,22 @@ class DeformationEngine {
   // Advances one frame: the probe where it is now (nullptr: lifted off the skin) and the frame's
   // duration (dynamic methods integrate over it; quasi-static ones ignore it).
   virtual EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) = 0;
+
+  // step() inside a time budget, for the kiosk's fixed frame: the trade is accuracy, never
+  // latency. The method asks may_continue() before each piece of work it can leave for later and
+  // reports cut_short when it stopped early. The PCG and corotational FEMs and the implicit MSDS
+  // stop their conjugate-gradient iterations (always one at least; warm-started, they converge
+  // over the next frames); the exact FEM does not hold nodes off the skin whose Green's functions
+  // it has not computed yet (each costs a full solve) and computes them only while time is left;
+  // a stitched volume leaves the sub-volumes the probe does not touch for later. Methods with no
+  // such work (the explicit MSDS: a frame is a fixed number of cheap steps) ignore the budget.
+  // An empty may_continue: exactly step(). Does not allocate (nor does the budget, if it fits
+  // std::function's local buffer: capture one pointer).
+  virtual EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                                      const StepBudget& may_continue) {
+    (void)may_continue;
+    return step(probe, frame_dt_s);
+  }
 
   // Node-major x,y,z displacements from rest, mm, and rest + displacement; valid until the next
   // step().

@@ -97,6 +97,11 @@ class ExactFem final : public DeformationEngine {
   EngineKind kind() const override { return EngineKind::kExactFem; }
   std::string_view name() const override { return "exact FEM"; }
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  // The same, except that nodes whose Green's functions are neither precomputed (the skin) nor
+  // cached are not held (a full solve each, ~30 ms on the default case: more than a frame has);
+  // they follow the field, and cut_short says so. The budget itself is not asked.
+  EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                              const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
   // Quasi-static: the next step() solves from scratch; this only sets the shape shown and the
@@ -146,7 +151,11 @@ class ExactFem final : public DeformationEngine {
   void update_whole_field();
   void update_skin_field();
   void accumulate_field();
+  EngineStepStats solve_probe(const ProbeCollider* probe);
   EngineStepStats step_frictionless(const ProbeCollider& probe);
+  // Under a budget: whether `node` lacks Green's functions and so is not held this frame (marks
+  // it deferred).
+  bool defers(int node);
   // One round of the frictionless active set on rows_; true when the set or a plane changed.
   bool update_active_set(const ProbeCollider& probe, bool skin_only);
   void update_deformed();
@@ -188,6 +197,8 @@ class ExactFem final : public DeformationEngine {
   std::vector<NodeContact> contacts_;
   std::vector<std::uint8_t> in_contact_;  // per node, within a frame's active-set rounds
   std::vector<std::uint8_t> released_;    // per node: let go once this frame
+  std::vector<std::uint8_t> deferred_;    // per node: not held this frame (no Green's functions)
+  bool defer_uncached_ = false;           // inside step_within() with a budget
   Eigen::MatrixXd capacitance_;
   Eigen::LLT<Eigen::MatrixXd> capacitance_llt_;
   Eigen::VectorXd lambda_mn_, rhs_, u_free_, rhs_free_;

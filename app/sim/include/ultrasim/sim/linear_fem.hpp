@@ -22,6 +22,7 @@ struct FemStepStats {
   int contact_nodes = 0;
   double contact_force_n = 0.0;  // magnitude of the total force on the contact nodes, newtons
   bool reset_after_divergence = false;
+  bool cut_short = false;  // the step's budget stopped CG before pcg_iterations_per_frame
 };
 
 // Quasi-static linear FEM as published: isotropic linear elasticity, Cauchy (small) strain,
@@ -55,6 +56,9 @@ class LinearFem final : public DeformationEngine {
   EngineKind kind() const override { return EngineKind::kPcgFem; }
   std::string_view name() const override { return "PCG FEM (published)"; }
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  // Fewer CG iterations when the budget runs out (one at least).
+  EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                              const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   // Warm start from this shape; the probe's contacts are found afresh at the next step.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
@@ -82,9 +86,9 @@ class LinearFem final : public DeformationEngine {
   int fixed_node_count() const { return fixed_count_; }
 
  private:
-  FemStepStats step_probe(const ProbeCollider* probe);
+  FemStepStats step_probe(const ProbeCollider* probe, const StepBudget& may_continue);
   void apply_collider(const ProbeCollider* collider);
-  FemStepStats run_pcg(int max_iterations, double tolerance);
+  FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();
   // out = (K + A) p, A the anchor springs' diagonal stiffness.

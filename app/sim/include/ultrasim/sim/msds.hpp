@@ -147,6 +147,11 @@ class MsdsEngine final : public DeformationEngine {
   // and contact_force_n = the nodes held on the probe after the last step and |Σ| of the spring
   // and damping forces the probe balances on them.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
+  // Implicit: each step's CG stops when the budget runs out (one iteration at least; the frame's
+  // simulated time is always integrated in full), and a rejected frame is retried with smaller
+  // steps only while there is time. Explicit: the budget is not asked.
+  EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
+                              const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return x_; }
   // Live switch: starts from u with zero velocity; fixed nodes stay at rest. Throws
@@ -241,6 +246,9 @@ class MsdsEngine final : public DeformationEngine {
 
   // One frame's pieces (no allocation).
   EngineStepStats run_frame(const ProbeCollider* probe);
+  // step_within()'s budget during the frame (null outside it) and whether it stopped a CG.
+  const StepBudget* budget_ = nullptr;
+  bool cut_short_ = false;
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
   int count_inverted_tets();  // inverted_tet_count() on the job system
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).

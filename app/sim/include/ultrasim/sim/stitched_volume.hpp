@@ -69,9 +69,10 @@ class StitchedVolume final : public DeformationEngine {
   // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
   // every exchange (so give it 1/exchanges of the time left). Stats: the sum of the
   // sub-volumes' iterations, contact nodes and contact forces' magnitudes, the most inverted
-  // tets of one, diverged if any did, and the strongest recovery.
+  // tets of one, diverged if any did, and the strongest recovery; cut_short when a due
+  // sub-volume was left for later.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
-                              const std::function<bool()>& may_continue);
+                              const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return shown_; }
   // Every sub-volume continues from the grid's field (copies of a shared node alike), awake.

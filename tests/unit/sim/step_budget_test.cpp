@@ -1,0 +1,167 @@
+// DeformationEngine::step_within: what each method leaves for later when the frame's budget runs
+// out, that it says so, that it never shows garbage, and that the work it skipped is made up over
+// the next frames; with time to spare it is exactly step().
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "block_fixture.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/exact_fem.hpp"
+
+namespace ultrasim::sim {
+namespace {
+
+using testing::Block;
+
+Block make_block() {
+  return testing::make_block({11, 7, 6}, [](const Eigen::Vector3d& centroid) {
+    return centroid.z() < 8.0 ? Material{1, "fat", 20.0, 0.45} : Material{2, "muscle", 60.0, 0.4};
+  });
+}
+
+std::vector<std::uint8_t> skin_where(const Block& b, bool (*keep)(const Eigen::Vector3d&)) {
+  std::vector<std::uint8_t> skin(b.mesh.node_count(), 0);
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& p = b.mesh.rest_positions_mm[n];
+    skin[n] = p.z() == 0.0 && keep(p);
+  }
+  return skin;
+}
+
+// A linear probe's face `depth_mm` below the skin at x = y = 0, beam straight down.
+ProbeCollider pressed(double depth_mm) {
+  return ProbeCollider::linear_face(Eigen::Vector3d(0.0, 0.3, depth_mm),
+                                    Eigen::Quaterniond::Identity(), 24.0, 8.0, 2.0);
+}
+
+std::unique_ptr<DeformationEngine> make(EngineKind kind, const Block& b,
+                                        const std::vector<std::uint8_t>& skin) {
+  return make_engine(kind, b.mesh, b.materials, b.fixed, EngineSettings{}, skin);
+}
+
+double max_abs(const Eigen::VectorXd& v) {
+  return v.lpNorm<Eigen::Infinity>();
+}
+
+const auto kAllSkin = [](const Eigen::Vector3d&) { return true; };
+
+// Budgets for the tests: never more time, and one that counts how often it was asked.
+const StepBudget kNoTime = [] { return false; };
+
+TEST(StepBudget, WithTimeToSpareEveryMethodIsExactlyStep) {
+  const Block b = make_block();
+  const auto skin = skin_where(b, kAllSkin);
+  const ProbeCollider probe = pressed(2.0);
+  for (EngineKind kind : {EngineKind::kPcgFem, EngineKind::kCorotationalFem, EngineKind::kExactFem,
+                          EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+    SCOPED_TRACE(engine_key(kind));
+    auto stepped = make(kind, b, skin);
+    auto budgeted = make(kind, b, skin);
+    int asked = 0;
+    const StepBudget plenty = [&asked] { return ++asked > 0; };
+    for (int frame = 0; frame < 3; ++frame) {
+      const EngineStepStats a = stepped->step(&probe, 1.0 / 60);
+      const EngineStepStats c = budgeted->step_within(&probe, 1.0 / 60, plenty);
+      EXPECT_EQ(a.iterations, c.iterations);
+      EXPECT_FALSE(c.cut_short);
+    }
+    EXPECT_EQ(stepped->displacements_mm(), budgeted->displacements_mm());
+    if (kind == EngineKind::kMsdsExplicit || kind == EngineKind::kExactFem) {
+      EXPECT_EQ(asked, 0) << "nothing of its frame can wait";
+    } else {
+      EXPECT_GT(asked, 0);
+    }
+  }
+}
+
+TEST(StepBudget, ConjugateGradientMethodsRunOneIterationWithoutTimeAndCatchUpOverFrames) {
+  const Block b = make_block();
+  const auto skin = skin_where(b, kAllSkin);
+  const ProbeCollider probe = pressed(2.0);
+  for (EngineKind kind : {EngineKind::kPcgFem, EngineKind::kCorotationalFem}) {
+    SCOPED_TRACE(engine_key(kind));
+    auto full = make(kind, b, skin);
+    auto starved = make(kind, b, skin);
+    for (int frame = 0; frame < 60; ++frame) full->step(&probe, 1.0 / 60);
+    const Eigen::VectorXd& want = full->displacements_mm();
+
+    const EngineStepStats first = starved->step_within(&probe, 1.0 / 60, kNoTime);
+    EXPECT_EQ(first.iterations, 1);
+    EXPECT_TRUE(first.cut_short);
+    EXPECT_FALSE(first.diverged);
+    EXPECT_TRUE(starved->displacements_mm().allFinite());
+    const double first_error = max_abs(starved->displacements_mm() - want);
+    // One warm-started iteration a frame: the same answer, later.
+    for (int frame = 1; frame < 600; ++frame) starved->step_within(&probe, 1.0 / 60, kNoTime);
+    const double late_error = max_abs(starved->displacements_mm() - want);
+    EXPECT_LT(late_error, 0.02 * max_abs(want)) << "first frame's error " << first_error;
+    EXPECT_LT(late_error, 0.1 * first_error);
+  }
+}
+
+TEST(StepBudget, PcgStopsWhereTheBudgetSays) {
+  const Block b = make_block();
+  const ProbeCollider probe = pressed(2.0);
+  auto fem = make(EngineKind::kPcgFem, b, {});
+  int left = 4;
+  const EngineStepStats s = fem->step_within(&probe, 1.0 / 60, [&left] { return left-- > 0; });
+  EXPECT_EQ(s.iterations, 5);  // the first, then one for each "yes"
+  EXPECT_TRUE(s.cut_short);
+}
+
+TEST(StepBudget, ImplicitMsdsWithoutTimeStaysFiniteAndSettlesNearTheFullSolve) {
+  const Block b = make_block();
+  const ProbeCollider probe = pressed(2.0);
+  auto full = make(EngineKind::kMsdsImplicit, b, {});
+  auto starved = make(EngineKind::kMsdsImplicit, b, {});
+  bool any_cut = false;
+  for (int frame = 0; frame < 300; ++frame) {
+    full->step(&probe, 1.0 / 60);
+    const EngineStepStats s = starved->step_within(&probe, 1.0 / 60, kNoTime);
+    any_cut = any_cut || s.cut_short;
+    ASSERT_FALSE(s.diverged) << "frame " << frame;
+    ASSERT_TRUE(starved->displacements_mm().allFinite());
+  }
+  EXPECT_TRUE(any_cut);
+  const Eigen::VectorXd& want = full->displacements_mm();
+  EXPECT_LT(max_abs(starved->displacements_mm() - want), 0.05 * max_abs(want));
+}
+
+TEST(StepBudget, ExactFemHoldsNoNodeWithoutGreensFunctionsAndComputesNoneUnderABudget) {
+  const Block b = make_block();
+  // Green's functions precomputed for the skin at x < 0 only: the probe at x = 0 also presses
+  // nodes whose columns would each take a solve with the factor.
+  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
+  const ProbeCollider probe = pressed(2.0);
+  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin);
+
+  const long long precomputed = budgeted.total_columns_computed();  // at construction
+  const EngineStepStats deferred = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
+  EXPECT_TRUE(deferred.cut_short);
+  EXPECT_EQ(budgeted.total_columns_computed(), precomputed);
+  EXPECT_GT(deferred.contact_nodes, 0) << "the precomputed half still holds the probe";
+  EXPECT_TRUE(budgeted.displacements_mm().allFinite());
+  const EngineStepStats full = unlimited.step(&probe, 1.0 / 60);
+  EXPECT_GT(unlimited.total_columns_computed(), precomputed);
+  EXPECT_GT(full.contact_nodes, deferred.contact_nodes);
+
+  // Once an unbudgeted frame has cached them, a budgeted frame holds them too: the same answer
+  // as an unbudgeted frame from the same shape.
+  ExactFem cached(b.mesh, b.materials, b.fixed, {}, half_skin);
+  cached.step(&probe, 1.0 / 60);
+  const long long computed = cached.total_columns_computed();
+  const EngineStepStats again = cached.step_within(&probe, 1.0 / 60, kNoTime);
+  unlimited.step(&probe, 1.0 / 60);
+  EXPECT_FALSE(again.cut_short);
+  EXPECT_EQ(cached.total_columns_computed(), computed);
+  EXPECT_EQ(again.contact_nodes, unlimited.last_solve_stats().contact_nodes);
+  EXPECT_EQ(cached.displacements_mm(), unlimited.displacements_mm());
+}
+
+}  // namespace
+}  // namespace ultrasim::sim
