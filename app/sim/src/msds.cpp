@@ -485,9 +485,7 @@ EngineStepStats MsdsEngine::step(const ProbeCollider* probe, double /*frame_dt_s
 
 EngineStepStats MsdsEngine::step_within(const ProbeCollider* probe, double frame_dt_s,
                                         const StepBudget& may_continue) {
-  if (integrator_ == MsdsIntegrator::kExplicitEuler || !may_continue) {
-    return step(probe, frame_dt_s);
-  }
+  if (!may_continue) return step(probe, frame_dt_s);
   budget_ = &may_continue;
   cut_short_ = false;
   EngineStepStats stats = step(probe, frame_dt_s);

@@ -147,9 +147,9 @@ class MsdsEngine final : public DeformationEngine {
   // and contact_force_n = the nodes held on the probe after the last step and |Σ| of the spring
   // and damping forces the probe balances on them.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
-  // Implicit: each step's CG stops when the budget runs out (one iteration at least; the frame's
-  // simulated time is always integrated in full), and a rejected frame is retried with smaller
-  // steps only while there is time. Explicit: the budget is not asked.
+  // A rejected frame is retried with smaller steps (2×, 4×, ... the steps) only while there is
+  // time, and the implicit integrator's CG stops when the budget runs out (one iteration at
+  // least). The frame's simulated time is always integrated in full.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
