@@ -131,6 +131,31 @@ TEST(StepBudget, ImplicitMsdsWithoutTimeStaysFiniteAndSettlesNearTheFullSolve) {
   EXPECT_LT(max_abs(starved->displacements_mm() - want), 0.05 * max_abs(want));
 }
 
+TEST(StepBudget, MsdsRetriesARejectedFrameWithSmallerStepsOnlyWhileThereIsTime) {
+  const Block b = make_block();
+  for (EngineKind kind : {EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+    SCOPED_TRACE(engine_key(kind));
+    // Put down deep at once, the face folds tets under its rim and the frame is rejected: find
+    // a depth where this method's step(), smaller steps and all, refuses it.
+    double depth_mm = 8.0;
+    for (; depth_mm < 19.5; depth_mm += 1.0) {
+      const ProbeCollider deep = pressed(depth_mm);
+      if (make(kind, b, {})->step(&deep, 1.0 / 60).recovery == Recovery::kKeptLastGood) break;
+    }
+    ASSERT_LT(depth_mm, 19.5) << "no press was refused: the test would mean nothing";
+    const ProbeCollider deep = pressed(depth_mm);
+    int asked = 0;
+    auto starved = make(kind, b, {});
+    const EngineStepStats given_up =
+        starved->step_within(&deep, 1.0 / 60, [&asked] { return ++asked < 0; });
+    EXPECT_TRUE(given_up.diverged);
+    EXPECT_TRUE(given_up.cut_short);
+    EXPECT_EQ(given_up.recovery, Recovery::kKeptLastGood);
+    EXPECT_EQ(max_abs(starved->displacements_mm()), 0.0) << "the frame's start: rest";
+    EXPECT_GE(asked, 1) << "asked before the first retry";
+  }
+}
+
 TEST(StepBudget, ExactFemHoldsNoNodeWithoutGreensFunctionsAndComputesNoneUnderABudget) {
   const Block b = make_block();
   // Green's functions precomputed for the skin at x < 0 only: the probe at x = 0 also presses
