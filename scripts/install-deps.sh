@@ -19,6 +19,8 @@ packages=(
   calculix-ccx
   # the charts in docs/ (scripts/plot_engines.py)
   python3-matplotlib
+  # an independent peer for the probe's CAN frames and candump logs (tests/integration)
+  python3-can
 )
 
 missing=()

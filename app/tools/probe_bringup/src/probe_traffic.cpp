@@ -1,0 +1,121 @@
+#include "ultrasim/tools/probe_traffic.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace ultrasim::tools {
+
+namespace pc = drivers::probe_can;
+
+namespace {
+
+std::string message_name(std::uint32_t id) {
+  switch (id) {
+    case pc::ProbeCodec::kStatusId:
+      return "ProbeStatus";
+    case pc::ProbeCodec::kOrientationId:
+      return "ProbeOrientation";
+    case pc::ProbeCodec::kInputId:
+      return "ProbeInput";
+    case pc::ProbeCodec::kHostCommandId:
+      return "HostCommand";
+    default:
+      return "unknown";
+  }
+}
+
+std::uint8_t sequence_of(const pc::ProbeMessage& m) {
+  return std::visit([](const auto& v) { return v.sequence; }, m);
+}
+
+}  // namespace
+
+double ProbeTraffic::MessageStats::rate_hz() const {
+  if (frames < 2 || last_us <= first_us) return 0.0;
+  return static_cast<double>(frames - 1) * 1e6 / static_cast<double>(last_us - first_us);
+}
+
+std::int64_t ProbeTraffic::MessageStats::interval_quantile_us(double q) const {
+  if (intervals_us.empty()) return 0;
+  std::vector<std::int64_t> sorted = intervals_us;
+  std::sort(sorted.begin(), sorted.end());
+  const auto rank =
+      static_cast<std::size_t>(std::clamp(std::ceil(q * static_cast<double>(sorted.size())) - 1.0,
+                                          0.0, static_cast<double>(sorted.size() - 1)));
+  return sorted[rank];
+}
+
+std::expected<pc::ProbeMessage, pc::DecodeError> ProbeTraffic::add(
+    const hal::ReceivedCanFrame& received) {
+  ++frames_;
+  auto decoded = codec_.decode(received.frame);
+  if (!decoded) {
+    ++errors_[static_cast<std::size_t>(decoded.error())];
+    return decoded;
+  }
+  MessageStats& s = by_id_[received.frame.id];
+  if (s.frames > 0) s.intervals_us.push_back(received.timestamp_us - s.last_us);
+  if (s.frames == 0) s.first_us = received.timestamp_us;
+  s.last_us = received.timestamp_us;
+  ++s.frames;
+  const auto step = sequences_.observe(received.frame.id, sequence_of(*decoded));
+  s.missed += step.missed;
+  s.duplicates += step.duplicate;
+  return decoded;
+}
+
+std::string ProbeTraffic::json() const {
+  std::ostringstream out;
+  out << "{\"frames\": " << frames_ << ", \"messages\": {";
+  bool first = true;
+  for (const auto& [id, s] : by_id_) {
+    if (!first) out << ", ";
+    first = false;
+    char rate[32];
+    std::snprintf(rate, sizeof rate, "%.2f", s.rate_hz());
+    out << '"' << message_name(id) << "\": {\"frames\": " << s.frames << ", \"rate_hz\": " << rate
+        << ", \"interval_us\": {\"p50\": " << s.interval_quantile_us(0.5)
+        << ", \"p99\": " << s.interval_quantile_us(0.99)
+        << ", \"max\": " << s.interval_quantile_us(1.0) << "}, \"missed\": " << s.missed
+        << ", \"duplicates\": " << s.duplicates << '}';
+  }
+  out << "}, \"errors\": {";
+  for (std::size_t e = 0; e < errors_.size(); ++e) {
+    if (e > 0) out << ", ";
+    out << '"' << pc::describe(static_cast<pc::DecodeError>(e)) << "\": " << errors_[e];
+  }
+  out << "}}";
+  return out.str();
+}
+
+std::string message_json(const hal::ReceivedCanFrame& received, const pc::ProbeMessage& message) {
+  std::ostringstream out;
+  out.precision(9);
+  out << "{\"t_us\": " << received.timestamp_us << ", \"message\": \""
+      << message_name(received.frame.id) << "\", \"sequence\": " << int{sequence_of(message)};
+  if (const auto* o = std::get_if<pc::ProbeOrientation>(&message)) {
+    const auto& q = o->orientation;
+    out << ", \"w\": " << q.w() << ", \"x\": " << q.x() << ", \"y\": " << q.y()
+        << ", \"z\": " << q.z();
+  } else if (const auto* s = std::get_if<pc::ProbeStatus>(&message)) {
+    out << ", \"firmware\": \"" << s->firmware_major << '.' << s->firmware_minor
+        << "\", \"calibration\": [" << s->calibration_system << ", " << s->calibration_gyro << ", "
+        << s->calibration_accel << ", " << s->calibration_mag
+        << "], \"error_flags\": " << s->error_flags
+        << ", \"orientation_rate_hz\": " << s->orientation_rate_hz;
+  } else if (const auto* in = std::get_if<pc::ProbeInput>(&message)) {
+    out << ", \"buttons\": [" << in->freeze << ", " << in->save << ", " << in->depth_up << ", "
+        << in->depth_down << ", " << in->gain_up << ", " << in->gain_down
+        << "], \"compression_force_n\": " << in->compression_force_n;
+  } else {
+    const auto& c = std::get<pc::HostCommand>(message);
+    out << ", \"command\": " << static_cast<int>(c.command)
+        << ", \"orientation_rate_hz\": " << c.orientation_rate_hz;
+  }
+  out << '}';
+  return out.str();
+}
+
+}  // namespace ultrasim::tools

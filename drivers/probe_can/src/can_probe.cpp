@@ -1,0 +1,93 @@
+#include "ultrasim/drivers/probe_can/can_probe.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace ultrasim::drivers::probe_can {
+
+CanProbe::CanProbe(hal::CanBus& bus, CanProbeSettings settings)
+    : bus_(bus), settings_(std::move(settings)) {
+  if (!(settings_.expected_rate_hz > 0.0) || !(settings_.stale_after_periods > 0.0)) {
+    throw std::invalid_argument("CanProbe: expected_rate_hz and stale_after_periods must be > 0");
+  }
+  if (!(std::abs(settings_.mount.norm() - 1.0) < 1e-6)) {
+    throw std::invalid_argument("CanProbe: the mount must be a unit quaternion");
+  }
+}
+
+std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
+  hal::ReceivedCanFrame received;
+  while (bus_.receive(received)) {
+    ++counters_.frames;
+    const auto decoded = codec_.decode(received.frame);
+    if (!decoded) {
+      ++counters_.refused;
+      counters_.bad_checksum += decoded.error() == DecodeError::kBadChecksum;
+      counters_.non_unit += decoded.error() == DecodeError::kNonUnitQuaternion;
+      continue;
+    }
+    if (const auto* o = std::get_if<ProbeOrientation>(&*decoded)) {
+      const auto step = sequences_.observe(received.frame.id, o->sequence);
+      counters_.missed += step.missed;
+      counters_.duplicates += step.duplicate;
+      if (step.duplicate) continue;
+      ++counters_.orientations;
+      hal::PoseSample sample;
+      sample.timestamp_us = received.timestamp_us;
+      sample.sequence = ++sample_sequence_;
+      sample.position_mm = settings_.position_mm;
+      sample.orientation = (o->orientation * settings_.mount).normalized();
+      pose_ = sample;
+    } else if (const auto* s = std::get_if<ProbeStatus>(&*decoded)) {
+      status_ = *s;
+    } else if (const auto* in = std::get_if<ProbeInput>(&*decoded)) {
+      input_ = *in;
+    }
+  }
+  if (!pose_) return std::nullopt;
+  hal::PoseSample out = *pose_;
+  out.health = health(now_us);
+  const bool stale = out.health == hal::PoseHealth::kStale;
+  counters_.stale_events += stale && !was_stale_;
+  was_stale_ = stale;
+  return out;
+}
+
+hal::PoseHealth CanProbe::health(hal::TimestampUs now_us) const {
+  if (bus_.stats().state == hal::CanBusState::kBusOff) return hal::PoseHealth::kFault;
+  if (status_ && (status_->error_flags & (kImuNotResponding | kImuSelfTestFailed)) != 0) {
+    return hal::PoseHealth::kFault;
+  }
+  const double rate_hz = status_ && status_->orientation_rate_hz > 0
+                             ? static_cast<double>(status_->orientation_rate_hz)
+                             : settings_.expected_rate_hz;
+  const double stale_after_us = settings_.stale_after_periods * 1e6 / rate_hz;
+  if (static_cast<double>(now_us - pose_->timestamp_us) > stale_after_us) {
+    return hal::PoseHealth::kStale;
+  }
+  return hal::PoseHealth::kOk;
+}
+
+bool CanProbe::send(const HostCommand& command, hal::TimestampUs deadline_us) {
+  HostCommand c = command;
+  c.sequence = command_sequence_;
+  if (!bus_.send(codec_.encode(c), deadline_us)) return false;
+  ++command_sequence_;
+  ++counters_.commands_sent;
+  return true;
+}
+
+bool CanProbe::send_zero(hal::TimestampUs deadline_us) {
+  return send({HostCommandKind::kZero, 0, 0}, deadline_us);
+}
+
+bool CanProbe::request_rate(int rate_hz, hal::TimestampUs deadline_us) {
+  if (rate_hz < 1 || rate_hz > 1000) {
+    throw std::invalid_argument("CanProbe::request_rate: " + std::to_string(rate_hz) +
+                                " Hz is outside 1..1000");
+  }
+  return send({HostCommandKind::kSetRate, rate_hz, 0}, deadline_us);
+}
+
+}  // namespace ultrasim::drivers::probe_can

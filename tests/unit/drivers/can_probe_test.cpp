@@ -1,0 +1,150 @@
+// The CAN probe as a pose source: fresh, stale and faulty poses, bad frames counted and never
+// shown, dropped frames counted, host commands on the bus.
+
+#include "ultrasim/drivers/probe_can/can_probe.hpp"
+
+#include <gtest/gtest.h>
+
+#include <deque>
+#include <vector>
+
+namespace ultrasim::drivers::probe_can {
+namespace {
+
+class FakeBus final : public hal::CanBus {
+ public:
+  bool send(const hal::CanFrame& frame, hal::TimestampUs) override {
+    if (refuse_sends) return false;
+    sent.push_back(frame);
+    return true;
+  }
+  bool receive(hal::ReceivedCanFrame& out) override {
+    if (queue.empty()) return false;
+    out = queue.front();
+    queue.pop_front();
+    return true;
+  }
+  hal::CanBusStats stats() const override { return stats_; }
+
+  std::deque<hal::ReceivedCanFrame> queue;
+  std::vector<hal::CanFrame> sent;
+  hal::CanBusStats stats_;
+  bool refuse_sends = false;
+};
+
+class CanProbeTest : public ::testing::Test {
+ protected:
+  void orientation_at(hal::TimestampUs t_us, const Eigen::Quaterniond& q, std::uint8_t seq) {
+    bus_.queue.push_back({codec_.encode(ProbeOrientation{q, seq}), t_us});
+  }
+  Eigen::Quaterniond about_z(double degrees) const {
+    return Eigen::Quaterniond(Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::UnitZ()));
+  }
+  FakeBus bus_;
+  ProbeCodec codec_;
+};
+
+TEST_F(CanProbeTest, FreshOrientationsBecomePosesThroughTheMount) {
+  CanProbeSettings settings;
+  settings.position_mm = {1, 2, 3};
+  settings.mount = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
+  CanProbe probe(bus_, settings);
+  EXPECT_FALSE(probe.latest(0).has_value()) << "no pose before the first orientation";
+  orientation_at(1'000, about_z(10), 0);
+  orientation_at(6'000, about_z(20), 1);
+  const auto pose = probe.latest(6'500);
+  ASSERT_TRUE(pose.has_value());
+  EXPECT_EQ(pose->health, hal::PoseHealth::kOk);
+  EXPECT_EQ(pose->timestamp_us, 6'000);
+  EXPECT_EQ(pose->position_mm, Eigen::Vector3d(1, 2, 3));
+  EXPECT_LT(pose->orientation.angularDistance(about_z(20) * settings.mount), 1e-4);
+  EXPECT_TRUE(hal::is_valid(*pose));
+  EXPECT_EQ(probe.counters().orientations, 2);
+  EXPECT_EQ(probe.name(), "can0");
+}
+
+TEST_F(CanProbeTest, NoOrientationForThreePeriodsIsStaleWithTheLastGoodPoseKept) {
+  CanProbe probe(bus_, {});
+  orientation_at(0, about_z(10), 0);
+  EXPECT_EQ(probe.latest(15'000)->health, hal::PoseHealth::kOk);  // 3 periods at 200 Hz
+  const auto stale = probe.latest(15'001);
+  EXPECT_EQ(stale->health, hal::PoseHealth::kStale);
+  EXPECT_LT(stale->orientation.angularDistance(about_z(10)), 1e-4);
+  probe.latest(20'000);
+  EXPECT_EQ(probe.counters().stale_events, 1);
+  orientation_at(20'000, about_z(30), 1);
+  EXPECT_EQ(probe.latest(20'100)->health, hal::PoseHealth::kOk);
+
+  // A status saying the rate is now 50 Hz: stale after 60 ms.
+  ProbeStatus status;
+  status.orientation_rate_hz = 52;  // multiples of 4: 52 Hz, stale after 57.7 ms
+  bus_.queue.push_back({codec_.encode(status), 20'200});
+  EXPECT_EQ(probe.latest(77'000)->health, hal::PoseHealth::kOk);
+  EXPECT_EQ(probe.latest(78'000)->health, hal::PoseHealth::kStale);
+  EXPECT_EQ(probe.counters().stale_events, 2);
+}
+
+TEST_F(CanProbeTest, BadFramesAreCountedAndNeverShown) {
+  CanProbe probe(bus_, {});
+  orientation_at(0, about_z(10), 0);
+  hal::CanFrame corrupt = codec_.encode(ProbeOrientation{about_z(80), 1});
+  corrupt.data[0] ^= 0x40;
+  bus_.queue.push_back({corrupt, 5'000});
+  bus_.queue.push_back({hal::CanFrame{.id = 0x101, .length = 3}, 6'000});
+  const auto pose = probe.latest(7'000);
+  EXPECT_LT(pose->orientation.angularDistance(about_z(10)), 1e-4);
+  EXPECT_EQ(probe.counters().refused, 2);
+  EXPECT_EQ(probe.counters().bad_checksum, 1);
+  EXPECT_EQ(probe.counters().frames, 3);
+}
+
+TEST_F(CanProbeTest, DroppedAndRepeatedFramesAreCounted) {
+  CanProbe probe(bus_, {});
+  orientation_at(0, about_z(1), 10);
+  orientation_at(5'000, about_z(2), 11);
+  orientation_at(20'000, about_z(5), 14);  // 12 and 13 lost
+  orientation_at(20'001, about_z(9), 14);  // a repeat: ignored
+  const auto pose = probe.latest(20'100);
+  EXPECT_LT(pose->orientation.angularDistance(about_z(5)), 1e-4);
+  EXPECT_EQ(probe.counters().missed, 2);
+  EXPECT_EQ(probe.counters().duplicates, 1);
+  EXPECT_EQ(probe.counters().orientations, 3);
+}
+
+TEST_F(CanProbeTest, AnImuFaultOrABusOffIsAFault) {
+  CanProbe probe(bus_, {});
+  orientation_at(0, about_z(10), 0);
+  ProbeStatus status;
+  status.error_flags = kImuNotResponding;
+  bus_.queue.push_back({codec_.encode(status), 100});
+  EXPECT_EQ(probe.latest(200)->health, hal::PoseHealth::kFault);
+  ASSERT_TRUE(probe.last_status().has_value());
+  status.error_flags = kSupplyLow;  // a warning, not a fault of the pose
+  bus_.queue.push_back({codec_.encode(status), 300});
+  EXPECT_EQ(probe.latest(400)->health, hal::PoseHealth::kOk);
+  bus_.stats_.state = hal::CanBusState::kBusOff;
+  EXPECT_EQ(probe.latest(500)->health, hal::PoseHealth::kFault);
+}
+
+TEST_F(CanProbeTest, HostCommandsGoOutOnTheBus) {
+  CanProbe probe(bus_, {});
+  EXPECT_TRUE(probe.send_zero(1'000));
+  EXPECT_TRUE(probe.request_rate(400, 1'000));
+  ASSERT_EQ(bus_.sent.size(), 2u);
+  const auto zero = codec_.decode(bus_.sent[0]);
+  ASSERT_TRUE(zero.has_value());
+  EXPECT_EQ(std::get<HostCommand>(*zero).command, HostCommandKind::kZero);
+  const auto rate = codec_.decode(bus_.sent[1]);
+  EXPECT_EQ(std::get<HostCommand>(*rate).orientation_rate_hz, 400);
+  EXPECT_EQ(std::get<HostCommand>(*rate).sequence, 1);
+  bus_.refuse_sends = true;
+  EXPECT_FALSE(probe.send_zero(1'000));
+  EXPECT_EQ(probe.counters().commands_sent, 2);
+  EXPECT_THROW(probe.request_rate(0, 1'000), std::invalid_argument);
+  CanProbeSettings bad;
+  bad.expected_rate_hz = 0;
+  EXPECT_THROW(CanProbe(bus_, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace ultrasim::drivers::probe_can
