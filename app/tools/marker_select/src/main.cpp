@@ -2,13 +2,21 @@
 // full (C(60, 6) sets of 3×3 patterns), and the worst case of the AprilTag families we use, for
 // comparison.
 
+#include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
 #include <apriltag/tagStandard41h12.h>
 
+#include <CLI/CLI.hpp>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <exception>
+#include <fstream>
+#include <iostream>
 
 #include "ultrasim/tools/code_distance.hpp"
+#include "ultrasim/tools/net_svg.hpp"
+#include "ultrasim/tracking/dodecahedron_net.hpp"
 #include "ultrasim/tracking/marker_selection.hpp"
 
 namespace {
@@ -22,9 +30,42 @@ int family_distance(apriltag_family_t* family) {
   return tools::min_distance_under_rotation(f);
 }
 
-}  // namespace
+// The twelve selected 3×3 patterns, each inside a black frame one patch wide (5 × 5 cells).
+std::vector<tools::FaceMarker> pattern_markers(const tracking::MarkerSet& best, double side_mm) {
+  const auto patterns = tracking::unique_patterns();
+  std::vector<tools::FaceMarker> markers;
+  for (int i : best.indices) {
+    tools::FaceMarker m{5, std::vector<bool>(25, true), side_mm, "3x3 #" + std::to_string(i)};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        m.black[static_cast<std::size_t>((r + 1) * 5 + c + 1)] =
+            ((patterns[static_cast<std::size_t>(i)] >> (r * 3 + c)) & 1) != 0;
+      }
+    }
+    markers.push_back(std::move(m));
+  }
+  return markers;
+}
 
-int main() {
+// tag36h11 ids 0–11 as AprilTag draws them (its white outer ring included).
+std::vector<tools::FaceMarker> tag_markers(double side_mm) {
+  apriltag_family_t* family = tag36h11_create();
+  std::vector<tools::FaceMarker> markers;
+  for (int id = 0; id < 12; ++id) {
+    image_u8_t* image = apriltag_to_image(family, static_cast<uint32_t>(id));
+    tools::FaceMarker m{image->width, {}, side_mm, "tag36h11 id " + std::to_string(id)};
+    for (int y = 0; y < image->height; ++y) {
+      for (int x = 0; x < image->width; ++x)
+        m.black.push_back(image->buf[y * image->stride + x] == 0);
+    }
+    image_u8_destroy(image);
+    markers.push_back(std::move(m));
+  }
+  tag36h11_destroy(family);
+  return markers;
+}
+
+int run_search(const std::string& net_path, double edge_mm, const std::string& kind) {
   const auto start = std::chrono::steady_clock::now();
   const tracking::MarkerSet best = tracking::select_markers();
   const double seconds =
@@ -55,5 +96,39 @@ int main() {
       best.min_similarity, family_distance(t36), t36->ncodes, family_distance(t41), t41->ncodes);
   tag36h11_destroy(t36);
   tagStandard41h12_destroy(t41);
+  if (net_path.empty()) return 0;
+  const tracking::DodecahedronNet net = tracking::make_dodecahedron_net(edge_mm, 10.0);
+  // As large as the face's inscribed circle allows, with a 10 % margin.
+  const double side_mm = 0.9 * std::sqrt(2.0) * tracking::pentagon_inradius_mm(edge_mm);
+  const auto markers = kind == "tag36h11" ? tag_markers(side_mm) : pattern_markers(best, side_mm);
+  std::ofstream out(net_path);
+  if (!out) throw std::runtime_error(net_path + ": cannot write");
+  out << tools::dodecahedron_net_svg(net, markers);
+  std::printf("net: %s, %.0f x %.0f mm, edge %.1f mm, markers %.1f mm (%s)\n", net_path.c_str(),
+              net.size_mm.x(), net.size_mm.y(), edge_mm, side_mm, kind.c_str());
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "ultrasim marker selection: the published 3x3 markers for the camera dodecahedron, their "
+      "worst case beside AprilTag's, and a printable net"};
+  std::string net_path, kind = "3x3";
+  double edge_mm = 40.0;
+  app.add_option("--net", net_path, "write a printable dodecahedron net (SVG, mm) to this file");
+  app.add_option("--edge-mm", edge_mm, "the net's edge length, mm")
+      ->check(CLI::Range(5.0, 500.0))
+      ->capture_default_str();
+  app.add_option("--markers", kind, "markers on the net's faces: 3x3 (selected) or tag36h11")
+      ->check(CLI::IsMember({"3x3", "tag36h11"}))
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    return run_search(net_path, edge_mm, kind);
+  } catch (const std::exception& e) {
+    std::cerr << "ultrasim-marker-select: " << e.what() << '\n';
+    return 1;
+  }
 }
