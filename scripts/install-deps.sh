@@ -23,6 +23,8 @@ packages=(
   python3-matplotlib
   # an independent peer for the probe's CAN frames and candump logs (tests/integration)
   python3-can
+  # SocketCAN in a real kernel: a QEMU VM with a busybox initramfs (tests/vm), can-utils inside
+  qemu-system-x86 busybox-static can-utils
 )
 
 missing=()
