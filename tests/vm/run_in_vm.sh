@@ -84,8 +84,10 @@ else
   echo "vm: cannot mount the host's root over 9p"
 fi
 echo "vm: command exited with status $status"
-# isa-debug-exit: QEMU exits with (byte << 1) | 1.
-printf "\\$(printf '%03o' $((status & 127)))" | dd of=/dev/port bs=1 seek=244 count=1 2>/dev/null
+# isa-debug-exit: QEMU exits with (byte << 1) | 1. The byte is status + 1 (statuses above 125
+# count as 125), so QEMU's own failures (status 1) never read as a guest's success.
+[ "$status" -gt 125 ] && status=125
+printf "\\$(printf '%03o' $((status + 1)))" | dd of=/dev/port bs=1 seek=244 count=1 2>/dev/null
 poweroff -f
 INIT
 chmod +x "$stage/init"
@@ -105,9 +107,9 @@ if ((qemu_status == 124)); then
   echo "run_in_vm: the VM did not finish within 120 s" >&2
   exit 1
 fi
-# (status << 1) | 1 from the guest; anything else: the guest never reported.
-if ((qemu_status % 2 == 1)); then
-  exit $(((qemu_status - 1) / 2))
+# ((status + 1) << 1) | 1 from the guest, so at least 3; anything else: the guest never reported.
+if ((qemu_status % 2 == 1 && qemu_status >= 3)); then
+  exit $(((qemu_status - 1) / 2 - 1))
 fi
 echo "run_in_vm: the guest stopped without reporting (qemu status $qemu_status)" >&2
 exit 1

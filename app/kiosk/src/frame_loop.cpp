@@ -31,8 +31,8 @@ sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sam
 
 void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
-  // A stitched method spends at most its budget, and never the time reserved for the render:
-  // past the deadline only the sub-volumes the probe touches still step.
+  // The method spends at most its budget, and never the time reserved for the render: past the
+  // deadline only its work that cannot wait still runs (Session::simulate).
   const std::int64_t allowed_us =
       std::clamp<std::int64_t>(tick.time_left_us, 0, loop->simulation_budget_us_);
   loop->outcome_ = loop->session_->simulate(loop->sample_, loop->clock_.now_us() + allowed_us);

@@ -231,7 +231,10 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
       probe, frame_dt_s, deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left});
   if (stitched_ != nullptr) outcome.stitch = stitched_->last_stitch_stats();
   if (!outcome.probe_held) {
-    if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider) {
+    // Kept last good because the budget ran out before smaller steps were tried is no verdict
+    // on the press: the next frame tries again, as after any failed try.
+    if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider &&
+        !outcome.sim.cut_short) {
       refused_depth_mm_ = pose_->position_mm.z();
       frames_since_refusal_ = 0;
     } else if (!outcome.sim.diverged) {

@@ -494,10 +494,14 @@ EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame
   // than a frame's budget ever holds, so under a budget none is computed (the budget is not
   // asked), and a node without them is not held.
   defer_uncached_ = static_cast<bool>(may_continue);
+  // Later unbudgeted steps compute what they need, even if this one throws.
+  struct Reset {
+    bool& flag;
+    ~Reset() { flag = false; }
+  } reset{defer_uncached_};
   std::fill(deferred_.begin(), deferred_.end(), 0);
   last_good_u_ = u_;
   EngineStepStats out = solve_probe(probe);
-  defer_uncached_ = false;
   out.cut_short = std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end();
   return out;
 }

@@ -488,9 +488,13 @@ EngineStepStats MsdsEngine::step_within(const ProbeCollider* probe, double frame
   if (!may_continue) return step(probe, frame_dt_s);
   budget_ = &may_continue;
   cut_short_ = false;
+  // The budget is the caller's: never keep it past this call, even if the step throws.
+  struct Forget {
+    const StepBudget*& budget;
+    ~Forget() { budget = nullptr; }
+  } forget{budget_};
   EngineStepStats stats = step(probe, frame_dt_s);
   stats.cut_short = cut_short_;
-  budget_ = nullptr;
   return stats;
 }
 

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace ultrasim::drivers::can_replay {
@@ -44,6 +45,10 @@ CandumpRecord parse_candump_line(std::string_view text, const std::string& sourc
           micro_text.data() + 6) {
     throw fail("timestamp: expected (seconds.microseconds) with 6 digits of microseconds, got '" +
                std::string(text.substr(0, close + 1)) + "'");
+  }
+  if (seconds < 0 || seconds > std::numeric_limits<std::int64_t>::max() / 1'000'000 - 1 ||
+      micro_text.front() == '-') {
+    throw fail("timestamp: '" + std::string(text.substr(0, close + 1)) + "' is out of range");
   }
   r.timestamp_us = seconds * 1'000'000 + micros;
   // " interface "

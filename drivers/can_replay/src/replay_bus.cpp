@@ -1,5 +1,6 @@
 #include "ultrasim/drivers/can_replay/replay_bus.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -19,6 +20,10 @@ ReplayBus::ReplayBus(std::vector<CandumpRecord> records, const hal::Clock& clock
                                   "'s timestamp is earlier than the one before it");
     }
   }
+  if (options_.loop && records_.back().timestamp_us == records_.front().timestamp_us) {
+    // A pass would take no time: every receive() would start another.
+    throw std::invalid_argument("ReplayBus: a log that spans no time cannot loop");
+  }
 }
 
 bool ReplayBus::send(const hal::CanFrame& frame, hal::TimestampUs deadline_us) {
@@ -35,11 +40,13 @@ bool ReplayBus::receive(hal::ReceivedCanFrame& out) {
   const hal::TimestampUs now = clock_.now_us();
   if (next_ == records_.size()) {
     if (!options_.loop) return false;
-    // The next pass starts one mean frame interval after the last frame.
+    // The next pass starts one mean frame interval after the last frame; a reader that fell more
+    // than a pass behind starts it now rather than replay the passes it missed at once.
     const auto span_us = records_.back().timestamp_us - records_.front().timestamp_us;
-    start_us_ += static_cast<hal::TimestampUs>(
-        static_cast<double>(span_us + span_us / static_cast<std::int64_t>(records_.size())) /
-        options_.speed);
+    const auto interval_us = span_us / static_cast<std::int64_t>(records_.size() - 1);
+    const auto pass_us =
+        static_cast<hal::TimestampUs>(static_cast<double>(span_us + interval_us) / options_.speed);
+    start_us_ = std::max(start_us_ + pass_us, now - pass_us);
     next_ = 0;
   }
   if (start_us_ < 0) start_us_ = now;

@@ -143,13 +143,18 @@ DbcSignal parse_signal(LineScanner& in, const DbcMessage& message) {
   s.maximum = in.number<double>("the maximum");
   in.expect(']', "after the maximum");
   s.unit = in.quoted("the unit");
-  if (s.length_bits < 1 || s.length_bits > 64) {
-    in.fail("signal " + s.name + ": length " + std::to_string(s.length_bits) + " is not 1..64");
+  // Raw values live in an int64_t and go through a double: 62 bits keep both exact enough.
+  if (s.length_bits < 1 || s.length_bits > 62) {
+    in.fail("signal " + s.name + ": length " + std::to_string(s.length_bits) + " is not 1..62");
   }
-  if (s.start_bit < 0 || s.start_bit + s.length_bits > 8 * message.length_bytes) {
+  if (s.start_bit < 0 || s.start_bit > 8 * message.length_bytes - s.length_bits) {
+    const long long last = static_cast<long long>(s.start_bit) + s.length_bits - 1;
     in.fail("signal " + s.name + " (bits " + std::to_string(s.start_bit) + ".." +
-            std::to_string(s.start_bit + s.length_bits - 1) + ") lies outside message " +
-            message.name + "'s " + std::to_string(message.length_bytes) + " bytes");
+            std::to_string(last) + ") lies outside message " + message.name + "'s " +
+            std::to_string(message.length_bytes) + " bytes");
+  }
+  if (!(s.minimum <= s.maximum)) {
+    in.fail("signal " + s.name + ": minimum above maximum");
   }
   if (!(s.factor != 0.0) || !std::isfinite(s.factor) || !std::isfinite(s.offset)) {
     in.fail("signal " + s.name + ": factor must be finite and non-zero, offset finite");
@@ -218,14 +223,29 @@ const DbcMessage* DbcDatabase::message(std::string_view name) const {
 DbcDatabase parse_dbc(std::string_view text, const std::string& source) {
   DbcDatabase db;
   int line_number = 0;
-  bool in_comment = false;  // inside a CM_ statement, which may span lines
+  bool in_comment = false;        // inside a CM_ statement, which may span lines
+  bool in_new_symbols = false;    // inside NS_'s indented list of keywords (CM_, VAL_, ...)
+  bool skipping_message = false;  // inside VECTOR__INDEPENDENT_SIG_MSG, a holder of no frame
   DbcMessage* current = nullptr;
   std::size_t pos = 0;
   while (pos <= text.size()) {
     const std::size_t newline = std::min(text.find('\n', pos), text.size());
-    const std::string_view line = trimmed(text.substr(pos, newline - pos));
+    const std::string_view raw_line = text.substr(pos, newline - pos);
+    const std::string_view line = trimmed(raw_line);
     pos = newline + 1;
     ++line_number;
+    if (in_new_symbols) {
+      if (!raw_line.empty() && (raw_line.front() == ' ' || raw_line.front() == '\t')) continue;
+      in_new_symbols = false;
+    }
+    if (starts_with_word(line, "NS_")) {
+      in_new_symbols = true;
+      continue;
+    }
+    if (skipping_message) {
+      if (starts_with_word(line, "SG_")) continue;
+      skipping_message = false;
+    }
     if (in_comment || starts_with_word(line, "CM_")) {
       // A comment's text is quoted and the statement ends with ';' after the closing quote.
       const bool ends = line.size() >= 2 && line.substr(line.size() - 2) == "\";";
@@ -238,6 +258,11 @@ DbcDatabase parse_dbc(std::string_view text, const std::string& source) {
       db.version = version.quoted("the version");
     } else if (starts_with_word(line, "BO_")) {
       LineScanner body(line.substr(3), source, line_number);
+      if (line.find("VECTOR__INDEPENDENT_SIG_MSG") != std::string_view::npos) {
+        skipping_message = true;  // Vector's placeholder for signals sent in no message
+        current = nullptr;
+        continue;
+      }
       DbcMessage m = parse_message(body);
       if (db.message(m.id) != nullptr) {
         body.fail("message identifier " + std::to_string(m.id) + " is defined twice");
@@ -291,10 +316,10 @@ std::optional<std::int64_t> to_raw(const DbcSignal& signal, double physical) {
   if (!std::isfinite(physical)) return std::nullopt;
   const double raw = std::round((physical - signal.offset) / signal.factor);
   const int bits = signal.length_bits;
+  // Exclusive upper bound: 2^bits − 1 is not exact in a double from 54 bits on.
   const double lowest = signal.is_signed ? -std::ldexp(1.0, bits - 1) : 0.0;
-  const double highest =
-      signal.is_signed ? std::ldexp(1.0, bits - 1) - 1 : std::ldexp(1.0, bits) - 1;
-  if (!(raw >= lowest && raw <= highest)) return std::nullopt;
+  const double beyond = std::ldexp(1.0, signal.is_signed ? bits - 1 : bits);
+  if (!(raw >= lowest && raw < beyond)) return std::nullopt;
   return static_cast<std::int64_t>(raw);
 }
 

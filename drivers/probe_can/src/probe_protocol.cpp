@@ -40,9 +40,10 @@ double read(const DbcSignal& s, std::span<const std::uint8_t> data) {
   return to_physical(s, read_raw(s, data));
 }
 
-// Writes a physical value clamped to the signal's declared range.
+// Writes a physical value clamped to the signal's declared range ([0|0]: none declared).
 void write(const DbcSignal& s, double value, std::span<std::uint8_t> data) {
-  const double clamped = std::clamp(value, s.minimum, s.maximum);
+  const bool ranged = s.minimum < s.maximum;
+  const double clamped = ranged ? std::clamp(value, s.minimum, s.maximum) : value;
   write_raw(s, to_raw(s, clamped).value_or(0), data);
 }
 

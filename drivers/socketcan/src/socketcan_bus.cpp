@@ -154,7 +154,9 @@ void apply_error_frame(hal::CanBusStats& stats, std::uint32_t can_id,
     const std::uint8_t crtl = data[1];
     if ((crtl & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) != 0) {
       stats.state = hal::CanBusState::kErrorPassive;
-    } else if ((crtl & CAN_ERR_CRTL_ACTIVE) != 0) {
+    } else if ((crtl & (CAN_ERR_CRTL_ACTIVE | CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING)) !=
+               0) {
+      // Back below the passive threshold (a warning level is still error active).
       stats.state = hal::CanBusState::kErrorActive;
     }
   }

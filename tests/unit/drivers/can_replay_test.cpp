@@ -83,6 +83,12 @@ TEST(CandumpLog, BadLinesNameTheLineAndTheField) {
   } catch (const CandumpError& e) {
     EXPECT_EQ(e.line(), 3);
   }
+  EXPECT_EQ(error_of("(-5.000000) can0 101#00"),
+            "probe.log:7: timestamp: '(-5.000000)' is out of range");
+  EXPECT_EQ(error_of("(1.-00001) can0 101#00"),
+            "probe.log:7: timestamp: '(1.-00001)' is out of range");
+  EXPECT_EQ(error_of("(99999999999999.000000) can0 101#00"),
+            "probe.log:7: timestamp: '(99999999999999.000000)' is out of range");
   EXPECT_THROW(read_candump_log("/nonexistent/probe.log"), CandumpError);
 }
 
@@ -131,8 +137,8 @@ TEST(ReplayBus, LoopsAndSpeedsUpAndRefusesLogsItCannotPlay) {
   ASSERT_TRUE(bus.receive(got));
   EXPECT_EQ(got.frame.data[0], 2);
   EXPECT_FALSE(bus.receive(got));
-  // The next pass starts one mean interval (5 ms of log, 2.5 ms played) after the last frame.
-  clock.advance_us(2'499);
+  // The next pass starts one mean interval (10 ms of log, 5 ms played) after the last frame.
+  clock.advance_us(4'999);
   ASSERT_FALSE(bus.receive(got));
   clock.advance_us(1);
   ASSERT_TRUE(bus.receive(got));
@@ -141,6 +147,8 @@ TEST(ReplayBus, LoopsAndSpeedsUpAndRefusesLogsItCannotPlay) {
 
   EXPECT_THROW(ReplayBus({}, clock), std::invalid_argument);
   EXPECT_THROW(ReplayBus(records, clock, {.speed = 0.0}), std::invalid_argument);
+  // A log spanning no time would start a new pass on every receive().
+  EXPECT_THROW(ReplayBus({records[0]}, clock, {.loop = true}), std::invalid_argument);
   auto backwards = records;
   std::swap(backwards[0], backwards[1]);
   EXPECT_THROW(ReplayBus(backwards, clock), std::invalid_argument);

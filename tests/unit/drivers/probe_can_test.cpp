@@ -77,8 +77,28 @@ TEST(Dbc, BrokenFilesNameTheLineAndWhatIsWrong) {
             "test.dbc:1: message identifier 4096 does not fit 11 bits");
   EXPECT_EQ(error_of(" SG_ A : 0|8@1+ (1,0) [0|1] \"\" HOST\n"), "test.dbc:1: SG_ before any BO_");
   EXPECT_EQ(error_of("CM_ \"never closed\n"), "test.dbc:2: a CM_ comment is not closed");
+  EXPECT_EQ(error_of(head + " SG_ A : 0|8@1+ (1,0) [2|1] \"\" HOST\n"),
+            "test.dbc:4: signal A: minimum above maximum");
+  EXPECT_EQ(error_of(head + " SG_ A : 0|63@1+ (1,0) [0|1] \"\" HOST\n"),
+            "test.dbc:4: signal A: length 63 is not 1..62");
+  EXPECT_EQ(error_of(head + " SG_ A : 2147483647|8@1+ (1,0) [0|1] \"\" HOST\n"),
+            "test.dbc:4: signal A (bits 2147483647..2147483654) lies outside message M's 8 bytes");
   // A comment spanning lines, holding what looks like a signal line, is skipped whole.
   EXPECT_EQ(error_of("CM_ \"first line\n SG_ A : 99|99@0- (x) \";\n"), "(parsed)");
+}
+
+TEST(Dbc, ReadsWhatVectorsToolsWriteAroundTheMessages) {
+  // NS_'s indented list names keywords (CM_, VAL_ ...) without being statements, and
+  // VECTOR__INDEPENDENT_SIG_MSG holds signals sent in no frame.
+  const DbcDatabase db = parse_dbc(
+      "VERSION \"\"\n\nNS_ :\n\tNS_DESC_\n\tCM_\n\tBA_DEF_\n\tVAL_\n\nBS_:\n\nBU_: A\n\n"
+      "BO_ 3221225472 VECTOR__INDEPENDENT_SIG_MSG: 0 Vector__XXX\n"
+      " SG_ Orphan : 0|8@1+ (1,0) [0|0] \"\" Vector__XXX\n\n"
+      "BO_ 291 Real: 2 A\n SG_ Value : 0|16@1+ (0.5,0) [0|0] \"\" Vector__XXX\n",
+      "vector.dbc");
+  ASSERT_EQ(db.messages.size(), 1u);
+  EXPECT_EQ(db.messages[0].name, "Real");
+  EXPECT_NE(db.messages[0].signal("Value"), nullptr);
 }
 
 TEST(Dbc, PacksLittleEndianSignalsBitByBit) {

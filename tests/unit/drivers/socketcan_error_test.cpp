@@ -26,11 +26,16 @@ TEST(SocketCanErrorFrames, BusOffPassiveAndRecoveryChangeTheState) {
   data[1] = CAN_ERR_CRTL_TX_PASSIVE;
   apply_error_frame(stats, CAN_ERR_FLAG | CAN_ERR_CRTL, data);
   EXPECT_EQ(stats.state, hal::CanBusState::kErrorPassive);
+  data[1] = CAN_ERR_CRTL_TX_WARNING;  // from passive down to the warning level: active again
+  apply_error_frame(stats, CAN_ERR_FLAG | CAN_ERR_CRTL, data);
+  EXPECT_EQ(stats.state, hal::CanBusState::kErrorActive);
+  data[1] = CAN_ERR_CRTL_RX_PASSIVE;
+  apply_error_frame(stats, CAN_ERR_FLAG | CAN_ERR_CRTL, data);
   data[1] = CAN_ERR_CRTL_ACTIVE;
   apply_error_frame(stats, CAN_ERR_FLAG | CAN_ERR_CRTL, data);
   EXPECT_EQ(stats.state, hal::CanBusState::kErrorActive);
   apply_error_frame(stats, CAN_ERR_FLAG | CAN_ERR_PROT, data);  // counted, no state change
-  EXPECT_EQ(stats.error_frames, 7u);
+  EXPECT_EQ(stats.error_frames, 9u);
   EXPECT_EQ(stats.state, hal::CanBusState::kErrorActive);
 }
 

@@ -1,6 +1,7 @@
 // DeformationEngine::step_within: what each method leaves for later when the frame's budget runs
-// out, that it says so, that it never shows garbage, and that the work it skipped is made up over
-// the next frames; with time to spare it is exactly step().
+// out, that it says so, that it never shows garbage, and that the CG methods make the skipped
+// iterations up over the next frames (the exact FEM's unheld nodes wait for an unbudgeted step);
+// with time to spare it is exactly step().
 
 #include <gtest/gtest.h>
 

@@ -15,6 +15,26 @@ std::string number(double v) {
   return text;
 }
 
+std::string escaped(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
 bool same_point(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return (a - b).norm() < 1e-6;
 }
@@ -88,7 +108,7 @@ std::string dodecahedron_net_svg(const tracking::DodecahedronNet& net,
     }
     svg << "<text x=\"0\" y=\"" << number(m.side_mm / 2 + 0.12 * inradius + 2.0)
         << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\" fill=\"#555\">"
-        << m.label << "</text>\n</g>\n";
+        << escaped(m.label) << "</text>\n</g>\n";
   }
   svg << "</svg>\n";
   return svg.str();

@@ -31,12 +31,15 @@ struct EngineStepStats {
   bool diverged = false;           // NaN, energy growth or inversion was detected this frame
   Recovery recovery = Recovery::kNone;
   // step_within()'s budget ran out before the frame's work was done: the shape shown is less
-  // converged (CG stopped early, contacts not yet held, sub-volumes left for later), not wrong.
+  // converged (CG stopped early, sub-volumes left for later, a refused frame not retried) or, for
+  // the exact FEM, leaves nodes it has no Green's functions for unheld (see its step_within()).
   bool cut_short = false;
 };
 
 // Asked before each further piece of a frame's work that a method can leave for later frames;
-// false: stop there. An empty function never stops a step. Called on the thread that steps.
+// false: stop there. An empty function never stops a step. Called from one thread at a time
+// while step_within() runs (the MSDS asks from its task team's lead, which may be a job-system
+// worker), never after it returns.
 using StepBudget = std::function<bool()>;
 
 // A zero-length spring pulling one node toward a target point (volume stitching: the target is the

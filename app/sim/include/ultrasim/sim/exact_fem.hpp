@@ -99,7 +99,10 @@ class ExactFem final : public DeformationEngine {
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // The same, except that nodes whose Green's functions are neither precomputed (the skin) nor
   // cached are not held (a full solve each, ~30 ms on the default case: more than a frame has);
-  // they follow the field, and cut_short says so. The budget itself is not asked.
+  // they follow the field and may end up inside the probe, and cut_short says so. Only an
+  // unbudgeted step() fills the cache, so under a budget on every frame (the kiosk) such nodes
+  // stay unheld: deep presses past the skin's candidates are approximate there, not converging.
+  // The budget itself is not asked.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }

@@ -59,9 +59,10 @@ class DbcError : public std::runtime_error {
 };
 
 // Parses `text` (named `source` in errors). Reads VERSION, BO_, SG_ and VAL_; skips the other
-// sections. Throws DbcError for a malformed BO_/SG_/VAL_ line, a signal outside its message's
-// bytes, overlapping signals, a duplicate message identifier or signal name, a Motorola signal,
-// or a multiplexed one. Allocates.
+// sections (NS_'s list of keywords included) and Vector's VECTOR__INDEPENDENT_SIG_MSG. Throws
+// DbcError for a malformed BO_/SG_/VAL_ line, a signal outside its message's bytes or longer than
+// 62 bits, a minimum above its maximum, overlapping signals, a duplicate message identifier or
+// signal name, a Motorola signal, or a multiplexed one. Allocates.
 DbcDatabase parse_dbc(std::string_view text, const std::string& source);
 
 // The raw (integer) value of a signal in `data` (the message's bytes), sign-extended when signed.
