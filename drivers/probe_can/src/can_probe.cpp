@@ -1,10 +1,33 @@
 #include "ultrasim/drivers/probe_can/can_probe.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
 
 namespace ultrasim::drivers::probe_can {
+
+void IntervalHistogram::add(std::int64_t interval_us) {
+  const auto bin = std::clamp<std::int64_t>(interval_us / kBinUs, 0, kBins - 1);
+  ++bins_[static_cast<std::size_t>(bin)];
+  min_us_ = count_ == 0 ? interval_us : std::min(min_us_, interval_us);
+  max_us_ = count_ == 0 ? interval_us : std::max(max_us_, interval_us);
+  sum_us_ += interval_us;
+  ++count_;
+}
+
+std::int64_t IntervalHistogram::quantile_us(double q) const {
+  if (count_ == 0) return 0;
+  const auto rank = std::max<std::int64_t>(
+      1,
+      static_cast<std::int64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_))));
+  std::int64_t seen = 0;
+  for (int b = 0; b < kBins; ++b) {
+    seen += bins_[static_cast<std::size_t>(b)];
+    if (seen >= rank) return (b + 1) * kBinUs;
+  }
+  return kBins * kBinUs;
+}
 
 CanProbe::CanProbe(hal::CanBus& bus, CanProbeSettings settings)
     : bus_(bus), settings_(std::move(settings)) {
@@ -33,6 +56,7 @@ std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
       counters_.duplicates += step.duplicate;
       if (step.duplicate) continue;
       ++counters_.orientations;
+      if (pose_) perf_.orientation_intervals.add(received.timestamp_us - pose_->timestamp_us);
       hal::PoseSample sample;
       sample.timestamp_us = received.timestamp_us;
       sample.sequence = ++sample_sequence_;
@@ -45,13 +69,59 @@ std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
       input_ = *in;
     }
   }
-  if (!pose_) return std::nullopt;
+  if (!pose_) {
+    advance_state(now_us, std::nullopt);
+    return std::nullopt;
+  }
   hal::PoseSample out = *pose_;
   out.health = health(now_us);
   const bool stale = out.health == hal::PoseHealth::kStale;
   counters_.stale_events += stale && !was_stale_;
   was_stale_ = stale;
+  advance_state(now_us, out.health);
   return out;
+}
+
+int CanProbe::requested_rate_hz() const {
+  return std::clamp(static_cast<int>(std::lround(settings_.expected_rate_hz)), 1, 1000);
+}
+
+void CanProbe::enter(State next, hal::TimestampUs now_us) {
+  if (state_since_us_ >= 0)
+    perf_.state_us[static_cast<std::size_t>(state_)] += now_us - state_since_us_;
+  state_ = next;
+  state_since_us_ = now_us;
+  perf_.faults += next == State::kFault;
+}
+
+void CanProbe::advance_state(hal::TimestampUs now_us, std::optional<hal::PoseHealth> health) {
+  constexpr hal::TimestampUs kRequestAgainUs = 1'000'000;
+  // Account the time spent so far in the current state.
+  if (state_since_us_ >= 0) {
+    perf_.state_us[static_cast<std::size_t>(state_)] += now_us - state_since_us_;
+  }
+  state_since_us_ = now_us;
+  const bool faulty =
+      health == hal::PoseHealth::kFault || bus_.stats().state == hal::CanBusState::kBusOff;
+  if (state_ != State::kFault && state_ != State::kReset && faulty) {
+    enter(State::kFault, now_us);
+    return;
+  }
+  if (state_ == State::kFault && !faulty) {
+    last_request_us_ = -1;
+    status_.reset();  // the next status must confirm the rate again
+    enter(State::kConfigure, now_us);
+  }
+  if (state_ == State::kReset) enter(State::kConfigure, now_us);
+  if (state_ != State::kConfigure) return;
+  // The probe reports its rate in steps of 4 Hz.
+  if (status_ && std::abs(status_->orientation_rate_hz - requested_rate_hz()) <= 4 && !faulty) {
+    enter(State::kStreaming, now_us);
+  } else if (last_request_us_ < 0 || now_us - last_request_us_ >= kRequestAgainUs) {
+    last_request_us_ = now_us;
+    ++perf_.rate_requests;
+    request_rate(requested_rate_hz(), now_us + 10'000);
+  }
 }
 
 hal::PoseHealth CanProbe::health(hal::TimestampUs now_us) const {

@@ -146,5 +146,64 @@ TEST_F(CanProbeTest, HostCommandsGoOutOnTheBus) {
   EXPECT_THROW(CanProbe(bus_, bad), std::invalid_argument);
 }
 
+TEST_F(CanProbeTest, TheDriverConfiguresStreamsFaultsAndRecovers) {
+  using State = CanProbe::State;
+  CanProbe probe(bus_, {});
+  EXPECT_EQ(probe.state(), State::kReset);
+  probe.latest(0);
+  EXPECT_EQ(probe.state(), State::kConfigure);
+  ASSERT_EQ(bus_.sent.size(), 1u);  // asks for the expected 200 Hz
+  const auto request = codec_.decode(bus_.sent[0]);
+  ASSERT_TRUE(request.has_value());
+  EXPECT_EQ(std::get<HostCommand>(*request).command, HostCommandKind::kSetRate);
+  EXPECT_EQ(std::get<HostCommand>(*request).orientation_rate_hz, 200);
+  probe.latest(999'999);
+  EXPECT_EQ(bus_.sent.size(), 1u);
+  probe.latest(1'000'000);  // no confirmation within a second: asks again
+  EXPECT_EQ(bus_.sent.size(), 2u);
+  EXPECT_EQ(probe.perf().rate_requests, 2);
+
+  ProbeStatus status;
+  status.orientation_rate_hz = 100;  // not what was asked: still configuring
+  bus_.queue.push_back({codec_.encode(status), 1'100'000});
+  probe.latest(1'100'000);
+  EXPECT_EQ(probe.state(), State::kConfigure);
+  status.orientation_rate_hz = 200;
+  bus_.queue.push_back({codec_.encode(status), 1'200'000});
+  for (int i = 0; i < 10; ++i) {
+    // 5 ms apart, one late by 3 ms.
+    orientation_at(1'200'000 + i * 5'000 + (i >= 6 ? 3'000 : 0), about_z(i),
+                   static_cast<std::uint8_t>(i));
+  }
+  probe.latest(1'250'000);
+  EXPECT_EQ(probe.state(), State::kStreaming);
+
+  status.error_flags = kImuSelfTestFailed;
+  bus_.queue.push_back({codec_.encode(status), 1'300'000});
+  probe.latest(1'300'000);
+  EXPECT_EQ(probe.state(), State::kFault);
+  EXPECT_EQ(probe.perf().faults, 1);
+  status.error_flags = 0;
+  bus_.queue.push_back({codec_.encode(status), 1'400'000});
+  probe.latest(1'400'000);  // cleared: configure again, and ask again
+  EXPECT_EQ(probe.state(), State::kConfigure);
+  EXPECT_EQ(bus_.sent.size(), 3u);
+  bus_.queue.push_back({codec_.encode(status), 1'450'000});
+  probe.latest(1'450'000);
+  EXPECT_EQ(probe.state(), State::kStreaming);
+
+  const CanProbe::Perf& perf = probe.perf();
+  EXPECT_EQ(perf.state_us[static_cast<int>(State::kConfigure)], 1'250'000 + 50'000);
+  EXPECT_EQ(perf.state_us[static_cast<int>(State::kStreaming)], 50'000);
+  EXPECT_EQ(perf.state_us[static_cast<int>(State::kFault)], 100'000);
+  const IntervalHistogram& h = perf.orientation_intervals;
+  EXPECT_EQ(h.count(), 9);
+  EXPECT_EQ(h.min_us(), 5'000);
+  EXPECT_EQ(h.max_us(), 8'000);
+  EXPECT_EQ(h.quantile_us(0.5), 5'100);  // the 5.0–5.1 ms bin's upper edge
+  EXPECT_EQ(h.quantile_us(1.0), 8'100);
+  EXPECT_NEAR(h.mean_us(), (8 * 5'000 + 8'000) / 9.0, 1e-9);
+}
+
 }  // namespace
 }  // namespace ultrasim::drivers::probe_can

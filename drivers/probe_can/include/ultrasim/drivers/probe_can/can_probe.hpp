@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -12,6 +13,27 @@
 #include "ultrasim/hal/pose_source.hpp"
 
 namespace ultrasim::drivers::probe_can {
+
+// Arrival intervals of a periodic message, in 100 µs bins up to 50 ms (longer ones in the last):
+// the jitter a bring-up engineer looks at. Fixed size, no allocation.
+class IntervalHistogram {
+ public:
+  static constexpr std::int64_t kBinUs = 100;
+  static constexpr int kBins = 500;
+
+  void add(std::int64_t interval_us);
+  std::int64_t count() const { return count_; }
+  std::int64_t min_us() const { return count_ > 0 ? min_us_ : 0; }
+  std::int64_t max_us() const { return max_us_; }
+  double mean_us() const { return count_ > 0 ? static_cast<double>(sum_us_) / count_ : 0.0; }
+  // The upper edge of the bin holding quantile q in [0, 1] (nearest rank); 0 when empty.
+  std::int64_t quantile_us(double q) const;
+  const std::array<std::int64_t, kBins>& bins() const { return bins_; }
+
+ private:
+  std::array<std::int64_t, kBins> bins_{};
+  std::int64_t count_ = 0, sum_us_ = 0, min_us_ = 0, max_us_ = 0;
+};
 
 struct CanProbeSettings {
   std::string name = "can0";  // shown in the stats overlay and logs
@@ -34,6 +56,21 @@ struct CanProbeSettings {
 // use only kOk ones. Non-blocking; the frame thread calls it.
 class CanProbe final : public hal::PoseSource {
  public:
+  // The driver's state, PX4 style: kReset until the first latest(); kConfigure while it asks the
+  // probe for the expected rate and waits for a status confirming it (asking again every second);
+  // kStreaming once confirmed; kFault while the pose's health is kFault (IMU flags, bus off), then
+  // kConfigure again when that clears.
+  enum class State : std::uint8_t { kReset, kConfigure, kStreaming, kFault };
+
+  // Perf counters: time in each state (indexed by State), entries into kFault, rate requests,
+  // and the orientation arrival intervals by kernel timestamp (jitter).
+  struct Perf {
+    std::array<std::int64_t, 4> state_us{};
+    std::int64_t faults = 0;
+    std::int64_t rate_requests = 0;
+    IntervalHistogram orientation_intervals;
+  };
+
   struct Counters {
     std::int64_t frames = 0;         // received
     std::int64_t orientations = 0;   // decoded orientations
@@ -54,6 +91,8 @@ class CanProbe final : public hal::PoseSource {
   std::string_view name() const override { return settings_.name; }
 
   const Counters& counters() const { return counters_; }
+  State state() const { return state_; }
+  const Perf& perf() const { return perf_; }
   const std::optional<ProbeStatus>& last_status() const { return status_; }
   std::optional<ProbeInput> last_input() const { return input_; }
 
@@ -65,6 +104,10 @@ class CanProbe final : public hal::PoseSource {
  private:
   bool send(const HostCommand& command, hal::TimestampUs deadline_us);
   hal::PoseHealth health(hal::TimestampUs now_us) const;
+  // Moves the state machine on at `now_us` given the health of the pose it reports.
+  void advance_state(hal::TimestampUs now_us, std::optional<hal::PoseHealth> health);
+  void enter(State next, hal::TimestampUs now_us);
+  int requested_rate_hz() const;
 
   hal::CanBus& bus_;
   CanProbeSettings settings_;
@@ -75,6 +118,10 @@ class CanProbe final : public hal::PoseSource {
   std::optional<ProbeStatus> status_;
   std::optional<ProbeInput> input_;
   bool was_stale_ = false;
+  State state_ = State::kReset;
+  hal::TimestampUs state_since_us_ = -1;
+  hal::TimestampUs last_request_us_ = -1;
+  Perf perf_;
   std::uint8_t command_sequence_ = 0;
   std::uint32_t sample_sequence_ = 0;
 };
