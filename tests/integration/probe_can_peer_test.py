@@ -119,7 +119,8 @@ def python_writes_we_read(tool, folder):
                          check=False)
     check(out.returncode == 0, f"bring-up tool failed: {out.stderr}")
     lines = [json.loads(line) for line in out.stdout.splitlines()]
-    summary = lines[-1]
+    summary = lines[-1]["traffic"]
+    driver = lines[-1]["driver"]
     frames = lines[:-1]
     orientations = [f for f in frames if f.get("message") == "ProbeOrientation"]
     check(len(orientations) == len(sent), f"{len(orientations)} orientations, sent {len(sent)}")
@@ -149,6 +150,12 @@ def python_writes_we_read(tool, folder):
     # 197 frames arrived, the first at 0 s and the last at 0.995 s.
     check(abs(o["rate_hz"] - 196 / 0.995) < 0.01, f"rate {o['rate_hz']}")
     check(summary["errors"]["checksum mismatch"] == 1, "checksum errors in the summary")
+    # The driver saw the same stream: its status said 200 Hz, as asked, so it streams; its
+    # arrival intervals are the 5 ms of the log (the dropped and corrupted ones aside).
+    check(driver["state"] == "streaming", f"driver state {driver['state']}")
+    check(driver["counters"]["missed"] == 3, f"driver missed {driver['counters']['missed']}")
+    check(driver["orientation_interval_us"]["p50"] == 5100,
+          f"driver interval p50 {driver['orientation_interval_us']['p50']}")
     print(f"python-can -> ultrasim: {len(orientations)} orientations within "
           f"{math.degrees(worst):.4f} deg, 3 missed, 1 corrupted frame refused")
 

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <thread>
@@ -138,6 +139,46 @@ TEST_F(SocketCanVmTest, AProbeStreamFromCanplayerBecomesPosesAndItsLatencyIsMeas
       "%lld us, max %lld us\n",
       latency_us.size(), static_cast<long long>(at(0.5)), static_cast<long long>(at(0.99)),
       static_cast<long long>(latency_us.back()));
+}
+
+TEST_F(SocketCanVmTest, TheBringUpToolListensLiveThroughTheProbeDriver) {
+  // One second of a probe: status at 10 Hz saying 200 Hz, orientations at 200 Hz.
+  const probe_can::ProbeCodec codec;
+  {
+    std::ofstream log("live.log");
+    for (int i = 0; i < 200; ++i) {
+      const std::int64_t t = 1'000'000 + i * 5'000;
+      if (i % 20 == 0) {
+        probe_can::ProbeStatus status;
+        status.orientation_rate_hz = 200;
+        status.sequence = static_cast<std::uint8_t>(i / 20);
+        log << can_replay::format_candump_line({t, "can0", codec.encode(status)}) << '\n';
+      }
+      log << can_replay::format_candump_line(
+                 {t + 100, "can0",
+                  codec.encode(probe_can::ProbeOrientation{Eigen::Quaterniond::Identity(),
+                                                           static_cast<std::uint8_t>(i)})})
+          << '\n';
+    }
+  }
+  std::remove("bringup.json");
+  ASSERT_EQ(std::system("(" ULTRASIM_BRINGUP_EXE
+                        " --interface vcan0 --seconds 3 > bringup.partial && mv bringup.partial "
+                        "bringup.json) & sleep 0.5"),
+            0);
+  ASSERT_EQ(std::system("canplayer -I live.log vcan0=can0"), 0);
+  std::string summary;
+  for (int i = 0; i < 200 && summary.empty(); ++i) {
+    std::this_thread::sleep_for(50ms);
+    std::ifstream in("bringup.json");
+    std::getline(in, summary);
+  }
+  ASSERT_FALSE(summary.empty()) << "the tool wrote no summary";
+  std::printf("bring-up summary: %s\n", summary.c_str());
+  EXPECT_NE(summary.find("\"ProbeOrientation\": {\"frames\": 200"), std::string::npos);
+  EXPECT_NE(summary.find("\"state\": \"streaming\""), std::string::npos);
+  EXPECT_NE(summary.find("\"missed\": 0"), std::string::npos);
+  EXPECT_NE(summary.find("\"rx_frames\": 210"), std::string::npos);
 }
 
 TEST_F(SocketCanVmTest, AnOverflowingReceiveQueueIsCounted) {

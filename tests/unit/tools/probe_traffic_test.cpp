@@ -43,3 +43,62 @@ TEST(ProbeTraffic, CountsRatesIntervalsMissedFramesAndRefusals) {
 
 }  // namespace
 }  // namespace ultrasim::tools
+
+namespace ultrasim::tools {
+namespace {
+
+class QueueBus final : public hal::CanBus {
+ public:
+  bool send(const hal::CanFrame& frame, hal::TimestampUs) override {
+    sent.push_back(frame);
+    return true;
+  }
+  bool receive(hal::ReceivedCanFrame& out) override {
+    if (next == queue.size()) return false;
+    out = queue[next++];
+    return true;
+  }
+  hal::CanBusStats stats() const override { return {}; }
+  std::vector<hal::ReceivedCanFrame> queue;
+  std::size_t next = 0;
+  std::vector<hal::CanFrame> sent;
+};
+
+TEST(TrafficTap, AccountsWhatTheDriverReadsAndReportsTheDriver) {
+  const drivers::probe_can::ProbeCodec codec;
+  QueueBus bus;
+  drivers::probe_can::ProbeStatus status;
+  status.orientation_rate_hz = 200;
+  bus.queue.push_back({codec.encode(status), 0});
+  for (int i = 0; i < 5; ++i) {
+    drivers::probe_can::ProbeOrientation o;
+    o.sequence = static_cast<std::uint8_t>(i);
+    bus.queue.push_back({codec.encode(o), 1'000 + i * 5'000});
+  }
+  ProbeTraffic traffic;
+  TrafficTap tap(bus, traffic);
+  int seen = 0;
+  tap.on_frame(
+      [](void* context, const hal::ReceivedCanFrame&,
+         const std::expected<drivers::probe_can::ProbeMessage, drivers::probe_can::DecodeError>&) {
+        ++*static_cast<int*>(context);
+      },
+      &seen);
+  drivers::probe_can::CanProbe probe(tap, {});
+  probe.latest(30'000);
+  probe.latest(31'000);
+  EXPECT_EQ(seen, 6);
+  EXPECT_EQ(traffic.frames(), 6);
+  EXPECT_TRUE(bus.sent.empty()) << "the status already said 200 Hz: nothing to ask for";
+  EXPECT_TRUE(probe.send_zero(40'000));
+  EXPECT_EQ(bus.sent.size(), 1u) << "commands go through the tap";
+  const std::string json = driver_json(probe, tap.stats());
+  EXPECT_NE(json.find("\"state\": \"streaming\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"orientation_interval_us\": {\"count\": 4, \"min\": 5000, \"p50\": 5100"),
+            std::string::npos)
+      << json;
+  EXPECT_NE(json.find("\"histogram_100us\": {\"5000\": 4}"), std::string::npos) << json;
+}
+
+}  // namespace
+}  // namespace ultrasim::tools

@@ -1,18 +1,24 @@
 // ultrasim-probe-bringup: the probe's CAN traffic for the engineer commissioning it. Reads a
-// candump -l log through the replay driver (the same hal::CanBus the kiosk reads) and reports
-// every decoded frame and, per message, rate, arrival intervals and missed frames; writes a demo
-// log of the protocol (our encoder) for other tools to read.
+// candump -l log through the replay driver, or a live SocketCAN interface, through the same probe
+// driver the kiosk uses, and reports every decoded frame and, per message, rate, arrival
+// intervals and missed frames, with the driver's state, perf counters and jitter histogram and
+// the bus's stats; writes a demo log of the protocol (our encoder) for other tools to read.
 
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <thread>
 
 #include "ultrasim/drivers/can_replay/candump_log.hpp"
 #include "ultrasim/drivers/can_replay/replay_bus.hpp"
+#include "ultrasim/drivers/posix/monotonic_clock.hpp"
+#include "ultrasim/drivers/probe_can/can_probe.hpp"
 #include "ultrasim/drivers/probe_can/probe_protocol.hpp"
+#include "ultrasim/drivers/socketcan/socketcan_bus.hpp"
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/tools/probe_traffic.hpp"
 
@@ -22,26 +28,65 @@ using namespace ultrasim;
 namespace pc = drivers::probe_can;
 namespace cr = drivers::can_replay;
 
-int replay(const std::string& path, bool print_frames) {
+void print_frame(void* /*context*/, const hal::ReceivedCanFrame& received,
+                 const std::expected<pc::ProbeMessage, pc::DecodeError>& decoded) {
+  if (decoded) {
+    std::cout << tools::message_json(received, *decoded) << '\n';
+  } else {
+    std::printf("{\"t_us\": %lld, \"id\": %u, \"error\": \"%s\"}\n",
+                static_cast<long long>(received.timestamp_us), received.frame.id,
+                std::string(pc::describe(decoded.error())).c_str());
+  }
+}
+
+// The probe driver reads the bus through a tap that accounts (and prints) every frame; the
+// summary is the traffic's and the driver's view.
+struct Session {
+  Session(hal::CanBus& bus, const std::string& name, int rate_hz, bool print_frames)
+      : tap(bus, traffic), probe(tap, settings(name, rate_hz)) {
+    if (print_frames) tap.on_frame(&print_frame, nullptr);
+  }
+  static pc::CanProbeSettings settings(const std::string& name, int rate_hz) {
+    pc::CanProbeSettings s;
+    s.name = name;
+    s.expected_rate_hz = rate_hz;
+    return s;
+  }
+  void print_summary(const hal::CanBusStats& bus) const {
+    std::cout << "{\"traffic\": " << traffic.json()
+              << ", \"driver\": " << tools::driver_json(probe, bus) << '}' << std::endl;
+  }
+  tools::ProbeTraffic traffic;
+  tools::TrafficTap tap;
+  pc::CanProbe probe;
+};
+
+int replay(const std::string& path, int rate_hz, bool print_frames) {
   hal::ManualClock clock;
   cr::ReplayBus bus(cr::read_candump_log(path), clock);
-  tools::ProbeTraffic traffic;
-  hal::ReceivedCanFrame received;
+  Session session(bus, path, rate_hz, print_frames);
   while (!bus.finished()) {
-    while (bus.receive(received)) {
-      const auto decoded = traffic.add(received);
-      if (!print_frames) continue;
-      if (decoded) {
-        std::cout << tools::message_json(received, *decoded) << '\n';
-      } else {
-        std::printf("{\"t_us\": %lld, \"id\": %u, \"error\": \"%s\"}\n",
-                    static_cast<long long>(received.timestamp_us), received.frame.id,
-                    std::string(pc::describe(decoded.error())).c_str());
-      }
-    }
-    clock.advance_us(100'000);  // frames carry their due time, however far the clock jumps
+    session.probe.latest(clock.now_us());
+    clock.advance_us(1'000);  // frames carry their due time: the driver sees the log's pace
   }
-  std::cout << traffic.json() << std::endl;
+  session.probe.latest(clock.now_us());
+  session.print_summary(bus.stats());
+  return 0;
+}
+
+int live(const std::string& interface, double seconds, int rate_hz, bool zero, bool print_frames) {
+  drivers::posix::MonotonicClock clock;
+  drivers::socketcan::SocketCanBus bus(interface, clock);
+  Session session(bus, interface, rate_hz, print_frames);
+  const hal::TimestampUs start = clock.now_us();
+  if (zero && !session.probe.send_zero(start + 10'000)) {
+    std::cerr << "ultrasim-probe-bringup: the zero command was not sent\n";
+  }
+  while (static_cast<double>(clock.now_us() - start) < seconds * 1e6) {
+    session.probe.latest(clock.now_us());
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  session.print_summary(bus.stats());
   return 0;
 }
 
@@ -86,21 +131,28 @@ int write_demo(const std::string& path, double seconds) {
 
 int main(int argc, char** argv) {
   CLI::App app{"ultrasim probe bring-up: decode and measure the probe's CAN traffic"};
-  std::string replay_path, demo_path;
-  bool frames = false;
+  std::string replay_path, demo_path, interface;
+  bool frames = false, zero = false;
   double seconds = 1.0;
+  int rate_hz = 200;
   app.add_option("--replay", replay_path,
-                 "candump -l log to decode: one JSON summary line (rate, intervals, missed "
-                 "frames per message; refused frames by reason)");
-  app.add_flag("--frames", frames, "with --replay: every decoded frame as a JSON line first");
+                 "candump -l log to decode through the probe driver (replay)");
+  app.add_option("--interface", interface,
+                 "SocketCAN interface to listen on live (can0, vcan0) for --seconds");
+  app.add_flag("--frames", frames, "every decoded frame as a JSON line before the summary");
+  app.add_option("--rate", rate_hz, "orientation rate to ask the probe for, Hz")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_flag("--zero", zero, "live: send the zero (tare) command first");
   app.add_option("--write-demo", demo_path,
                  "write a demo log of the protocol: the probe turning at 30 deg/s, 200 Hz");
-  app.add_option("--seconds", seconds, "length of --write-demo's log")
+  app.add_option("--seconds", seconds, "length of the live session or of --write-demo's log")
       ->check(CLI::Range(0.01, 3600.0));
   CLI11_PARSE(app, argc, argv);
   try {
     if (!demo_path.empty()) return write_demo(demo_path, seconds);
-    if (!replay_path.empty()) return replay(replay_path, frames);
+    if (!replay_path.empty()) return replay(replay_path, rate_hz, frames);
+    if (!interface.empty()) return live(interface, seconds, rate_hz, zero, frames);
     std::cerr << app.help();
     return 2;
   } catch (const std::exception& e) {

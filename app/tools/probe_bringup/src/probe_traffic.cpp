@@ -90,6 +90,48 @@ std::string ProbeTraffic::json() const {
   return out.str();
 }
 
+bool TrafficTap::receive(hal::ReceivedCanFrame& out) {
+  if (!bus_.receive(out)) return false;
+  const auto decoded = traffic_.add(out);
+  if (callback_ != nullptr) callback_(context_, out, decoded);
+  return true;
+}
+
+std::string driver_json(const pc::CanProbe& probe, const hal::CanBusStats& bus) {
+  static constexpr const char* kStates[] = {"reset", "configure", "streaming", "fault"};
+  static constexpr const char* kBusStates[] = {"error-active", "error-passive", "bus-off"};
+  const pc::CanProbe::Perf& perf = probe.perf();
+  const pc::IntervalHistogram& h = perf.orientation_intervals;
+  const pc::CanProbe::Counters& c = probe.counters();
+  std::ostringstream out;
+  out << "{\"state\": \"" << kStates[static_cast<int>(probe.state())] << "\", \"state_us\": {";
+  for (int s = 0; s < 4; ++s) {
+    out << (s > 0 ? ", " : "") << '"' << kStates[s] << "\": " << perf.state_us[s];
+  }
+  char mean[32];
+  std::snprintf(mean, sizeof mean, "%.1f", h.mean_us());
+  out << "}, \"faults\": " << perf.faults << ", \"rate_requests\": " << perf.rate_requests
+      << ", \"orientation_interval_us\": {\"count\": " << h.count() << ", \"min\": " << h.min_us()
+      << ", \"p50\": " << h.quantile_us(0.5) << ", \"p99\": " << h.quantile_us(0.99)
+      << ", \"max\": " << h.max_us() << ", \"mean\": " << mean << ", \"histogram_100us\": {";
+  bool first = true;
+  for (int b = 0; b < pc::IntervalHistogram::kBins; ++b) {
+    if (h.bins()[static_cast<std::size_t>(b)] == 0) continue;
+    out << (first ? "" : ", ") << '"' << b * pc::IntervalHistogram::kBinUs
+        << "\": " << h.bins()[static_cast<std::size_t>(b)];
+    first = false;
+  }
+  out << "}}, \"counters\": {\"frames\": " << c.frames << ", \"orientations\": " << c.orientations
+      << ", \"missed\": " << c.missed << ", \"duplicates\": " << c.duplicates
+      << ", \"refused\": " << c.refused << ", \"stale_events\": " << c.stale_events
+      << "}, \"bus\": {\"state\": \"" << kBusStates[static_cast<int>(bus.state)]
+      << "\", \"rx_frames\": " << bus.rx_frames << ", \"tx_frames\": " << bus.tx_frames
+      << ", \"tx_failures\": " << bus.tx_failures << ", \"rx_overflows\": " << bus.rx_overflows
+      << ", \"error_frames\": " << bus.error_frames
+      << ", \"bus_off_events\": " << bus.bus_off_events << "}}";
+  return out.str();
+}
+
 std::string message_json(const hal::ReceivedCanFrame& received, const pc::ProbeMessage& message) {
   std::ostringstream out;
   out.precision(9);

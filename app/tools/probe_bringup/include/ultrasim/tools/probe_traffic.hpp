@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "ultrasim/drivers/probe_can/can_probe.hpp"
 #include "ultrasim/drivers/probe_can/probe_protocol.hpp"
 #include "ultrasim/drivers/probe_can/sequence_tracker.hpp"
 #include "ultrasim/hal/can_bus.hpp"
@@ -48,6 +49,40 @@ class ProbeTraffic {
   std::array<std::int64_t, 6> errors_{};
   std::int64_t frames_ = 0;
 };
+
+// A CanBus in front of another that accounts every frame received through it in a ProbeTraffic
+// (and hands it to `on_frame`, if set), so the bring-up tool sees the traffic the probe driver
+// reads. Sending passes straight through.
+class TrafficTap final : public hal::CanBus {
+ public:
+  // `bus` and `traffic` must outlive the tap.
+  TrafficTap(hal::CanBus& bus, ProbeTraffic& traffic) : bus_(bus), traffic_(traffic) {}
+
+  using FrameCallback = void (*)(void* context, const hal::ReceivedCanFrame& received,
+                                 const std::expected<drivers::probe_can::ProbeMessage,
+                                                     drivers::probe_can::DecodeError>& decoded);
+  void on_frame(FrameCallback callback, void* context) {
+    callback_ = callback;
+    context_ = context;
+  }
+
+  bool send(const hal::CanFrame& frame, hal::TimestampUs deadline_us) override {
+    return bus_.send(frame, deadline_us);
+  }
+  bool receive(hal::ReceivedCanFrame& out) override;
+  hal::CanBusStats stats() const override { return bus_.stats(); }
+
+ private:
+  hal::CanBus& bus_;
+  ProbeTraffic& traffic_;
+  FrameCallback callback_ = nullptr;
+  void* context_ = nullptr;
+};
+
+// The probe driver's view as one JSON object: its state, time in each state, faults, rate
+// requests, the orientation arrival intervals (count, min, p50, p99, max, mean, and the
+// histogram's non-empty 100 µs bins), its counters, and the bus's stats.
+std::string driver_json(const drivers::probe_can::CanProbe& probe, const hal::CanBusStats& bus);
 
 // One decoded message as a JSON object (the frame's time and identifier included).
 std::string message_json(const hal::ReceivedCanFrame& received,
