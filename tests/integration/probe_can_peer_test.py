@@ -183,6 +183,20 @@ def we_write_python_reads(tool, folder):
         dot = abs(sum(a * b for a, b in zip(q, want)))
         worst = max(worst, 2 * math.acos(min(1.0, dot)))
     check(math.degrees(worst) < 0.01, f"demo orientation error {math.degrees(worst):.4f} deg")
+    # Boresight on the same log: the mount must undo the last orientation (q_last^-1), as
+    # decoded here.
+    out = subprocess.run([tool, "--replay", log, "--boresight"], capture_output=True, text=True,
+                         check=False)
+    check(out.returncode == 0, f"--boresight failed: {out.stderr}")
+    mount = json.loads(out.stdout.splitlines()[-1])["mount_wxyz"]
+    q_last, _ = decode_orientation(bytes(orientations[-1].data))
+    # q_last x mount must be the identity: its vector part vanishes (angle = 2 atan(|v| / |w|)).
+    w1, x1, y1, z1 = q_last
+    w2, x2, y2, z2 = mount
+    product = (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+               w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+    angle = 2 * math.atan2(math.sqrt(sum(c * c for c in product[1:])), abs(product[0]))
+    check(math.degrees(angle) < 0.01, f"boresight mount {mount}: {math.degrees(angle):.4f} deg")
     print(f"ultrasim -> python-can: {len(messages)} frames, orientation within "
           f"{math.degrees(worst):.4f} deg, every checksum holds")
 

@@ -61,7 +61,8 @@ std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
       sample.timestamp_us = received.timestamp_us;
       sample.sequence = ++sample_sequence_;
       sample.position_mm = settings_.position_mm;
-      sample.orientation = (o->orientation * settings_.mount).normalized();
+      sensor_ = o->orientation;
+      sample.orientation = (sensor_ * settings_.mount).normalized();
       pose_ = sample;
     } else if (const auto* s = std::get_if<ProbeStatus>(&*decoded)) {
       status_ = *s;
@@ -137,6 +138,13 @@ hal::PoseHealth CanProbe::health(hal::TimestampUs now_us) const {
     return hal::PoseHealth::kStale;
   }
   return hal::PoseHealth::kOk;
+}
+
+bool CanProbe::calibrate_mount(const Eigen::Quaterniond& reference) {
+  if (!pose_) return false;
+  settings_.mount = (sensor_.conjugate() * reference.normalized()).normalized();
+  pose_->orientation = (sensor_ * settings_.mount).normalized();
+  return true;
 }
 
 bool CanProbe::send(const HostCommand& command, hal::TimestampUs deadline_us) {

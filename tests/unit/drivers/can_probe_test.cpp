@@ -146,6 +146,23 @@ TEST_F(CanProbeTest, HostCommandsGoOutOnTheBus) {
   EXPECT_THROW(CanProbe(bus_, bad), std::invalid_argument);
 }
 
+TEST_F(CanProbeTest, BoresightMakesTheHeldPoseTheReference) {
+  CanProbe probe(bus_, {});
+  EXPECT_FALSE(probe.calibrate_mount()) << "nothing to calibrate on yet";
+  orientation_at(0, about_z(30), 0);
+  probe.latest(100);
+  // Held upright in its holder (the reference: identity) while the sensor reads 30° about z.
+  ASSERT_TRUE(probe.calibrate_mount());
+  EXPECT_LT(probe.mount().angularDistance(about_z(-30)), 1e-4);
+  EXPECT_LT(probe.latest(200)->orientation.angularDistance(Eigen::Quaterniond::Identity()), 1e-4);
+  orientation_at(5'000, about_z(40), 1);  // turned 10° from the holder
+  EXPECT_LT(probe.latest(5'100)->orientation.angularDistance(about_z(10)), 1e-4);
+  // Another reference: the holder tilted 90° about x.
+  const Eigen::Quaterniond tilted(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
+  ASSERT_TRUE(probe.calibrate_mount(tilted));
+  EXPECT_LT(probe.latest(5'200)->orientation.angularDistance(tilted), 1e-4);
+}
+
 TEST_F(CanProbeTest, TheDriverConfiguresStreamsFaultsAndRecovers) {
   using State = CanProbe::State;
   CanProbe probe(bus_, {});

@@ -52,16 +52,28 @@ struct Session {
     s.expected_rate_hz = rate_hz;
     return s;
   }
-  void print_summary(const hal::CanBusStats& bus) const {
+  // With `boresight`: the mount that makes the last orientation identity, for the kiosk's
+  // settings (the probe held upright in its holder at the end of the session).
+  void print_summary(const hal::CanBusStats& bus, bool boresight) {
     std::cout << "{\"traffic\": " << traffic.json()
-              << ", \"driver\": " << tools::driver_json(probe, bus) << '}' << std::endl;
+              << ", \"driver\": " << tools::driver_json(probe, bus);
+    if (boresight) {
+      if (probe.calibrate_mount()) {
+        const Eigen::Quaterniond& m = probe.mount();
+        std::printf(", \"mount_wxyz\": [%.9f, %.9f, %.9f, %.9f]", m.w(), m.x(), m.y(), m.z());
+        std::fflush(stdout);
+      } else {
+        std::cout << ", \"mount_wxyz\": null";
+      }
+    }
+    std::cout << '}' << std::endl;
   }
   tools::ProbeTraffic traffic;
   tools::TrafficTap tap;
   pc::CanProbe probe;
 };
 
-int replay(const std::string& path, int rate_hz, bool print_frames) {
+int replay(const std::string& path, int rate_hz, bool print_frames, bool boresight) {
   hal::ManualClock clock;
   cr::ReplayBus bus(cr::read_candump_log(path), clock);
   Session session(bus, path, rate_hz, print_frames);
@@ -70,11 +82,12 @@ int replay(const std::string& path, int rate_hz, bool print_frames) {
     clock.advance_us(1'000);  // frames carry their due time: the driver sees the log's pace
   }
   session.probe.latest(clock.now_us());
-  session.print_summary(bus.stats());
+  session.print_summary(bus.stats(), boresight);
   return 0;
 }
 
-int live(const std::string& interface, double seconds, int rate_hz, bool zero, bool print_frames) {
+int live(const std::string& interface, double seconds, int rate_hz, bool zero, bool print_frames,
+         bool boresight) {
   drivers::posix::MonotonicClock clock;
   drivers::socketcan::SocketCanBus bus(interface, clock);
   Session session(bus, interface, rate_hz, print_frames);
@@ -86,7 +99,7 @@ int live(const std::string& interface, double seconds, int rate_hz, bool zero, b
     session.probe.latest(clock.now_us());
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
-  session.print_summary(bus.stats());
+  session.print_summary(bus.stats(), boresight);
   return 0;
 }
 
@@ -132,7 +145,7 @@ int write_demo(const std::string& path, double seconds) {
 int main(int argc, char** argv) {
   CLI::App app{"ultrasim probe bring-up: decode and measure the probe's CAN traffic"};
   std::string replay_path, demo_path, interface;
-  bool frames = false, zero = false;
+  bool frames = false, zero = false, boresight = false;
   double seconds = 1.0;
   int rate_hz = 200;
   app.add_option("--replay", replay_path,
@@ -144,6 +157,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_flag("--zero", zero, "live: send the zero (tare) command first");
+  app.add_flag("--boresight", boresight,
+               "mount calibration: with the probe upright in its holder at the end, print the "
+               "mount that makes that pose identity (mount_wxyz)");
   app.add_option("--write-demo", demo_path,
                  "write a demo log of the protocol: the probe turning at 30 deg/s, 200 Hz");
   app.add_option("--seconds", seconds, "length of the live session or of --write-demo's log")
@@ -151,8 +167,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     if (!demo_path.empty()) return write_demo(demo_path, seconds);
-    if (!replay_path.empty()) return replay(replay_path, rate_hz, frames);
-    if (!interface.empty()) return live(interface, seconds, rate_hz, zero, frames);
+    if (!replay_path.empty()) return replay(replay_path, rate_hz, frames, boresight);
+    if (!interface.empty()) return live(interface, seconds, rate_hz, zero, frames, boresight);
     std::cerr << app.help();
     return 2;
   } catch (const std::exception& e) {

@@ -96,6 +96,14 @@ class CanProbe final : public hal::PoseSource {
   const std::optional<ProbeStatus>& last_status() const { return status_; }
   std::optional<ProbeInput> last_input() const { return input_; }
 
+  // Mount calibration (boresight): with the probe held in a known pose, `reference` (the
+  // holder's), make the mount such that the newest sensor orientation maps onto it:
+  // mount = sensor⁻¹ × reference, applied from now on (the pose held is updated too). False, and
+  // nothing changes, before any orientation has arrived. The host-side counterpart of
+  // send_zero(), which asks the probe itself to re-zero.
+  bool calibrate_mount(const Eigen::Quaterniond& reference = Eigen::Quaterniond::Identity());
+  const Eigen::Quaterniond& mount() const { return settings_.mount; }
+
   // Host commands, sent with a deadline: zero (tare: the probe's current orientation becomes
   // identity) and the orientation rate. False when the bus did not take the frame.
   bool send_zero(hal::TimestampUs deadline_us);
@@ -115,6 +123,7 @@ class CanProbe final : public hal::PoseSource {
   SequenceTracker sequences_;
   Counters counters_;
   std::optional<hal::PoseSample> pose_;  // the newest good orientation, as a sample
+  Eigen::Quaterniond sensor_ = Eigen::Quaterniond::Identity();  // its orientation before the mount
   std::optional<ProbeStatus> status_;
   std::optional<ProbeInput> input_;
   bool was_stale_ = false;
