@@ -87,11 +87,9 @@ int CanProbe::requested_rate_hz() const {
   return std::clamp(static_cast<int>(std::lround(settings_.expected_rate_hz)), 1, 1000);
 }
 
-void CanProbe::enter(State next, hal::TimestampUs now_us) {
-  if (state_since_us_ >= 0)
-    perf_.state_us[static_cast<std::size_t>(state_)] += now_us - state_since_us_;
+void CanProbe::enter(State next) {
+  // advance_state() has accounted the time up to now to the state being left.
   state_ = next;
-  state_since_us_ = now_us;
   perf_.faults += next == State::kFault;
 }
 
@@ -105,19 +103,19 @@ void CanProbe::advance_state(hal::TimestampUs now_us, std::optional<hal::PoseHea
   const bool faulty =
       health == hal::PoseHealth::kFault || bus_.stats().state == hal::CanBusState::kBusOff;
   if (state_ != State::kFault && state_ != State::kReset && faulty) {
-    enter(State::kFault, now_us);
+    enter(State::kFault);
     return;
   }
   if (state_ == State::kFault && !faulty) {
     last_request_us_ = -1;
     status_.reset();  // the next status must confirm the rate again
-    enter(State::kConfigure, now_us);
+    enter(State::kConfigure);
   }
-  if (state_ == State::kReset) enter(State::kConfigure, now_us);
+  if (state_ == State::kReset) enter(State::kConfigure);
   if (state_ != State::kConfigure) return;
   // The probe reports its rate in steps of 4 Hz.
   if (status_ && std::abs(status_->orientation_rate_hz - requested_rate_hz()) <= 4 && !faulty) {
-    enter(State::kStreaming, now_us);
+    enter(State::kStreaming);
   } else if (last_request_us_ < 0 || now_us - last_request_us_ >= kRequestAgainUs) {
     last_request_us_ = now_us;
     ++perf_.rate_requests;

@@ -28,10 +28,12 @@ using namespace ultrasim;
 namespace pc = drivers::probe_can;
 namespace cr = drivers::can_replay;
 
-void print_frame(void* /*context*/, const hal::ReceivedCanFrame& received,
+// `traffic`: the session's ProbeTraffic, which names the messages after the protocol's database.
+void print_frame(void* traffic, const hal::ReceivedCanFrame& received,
                  const std::expected<pc::ProbeMessage, pc::DecodeError>& decoded) {
   if (decoded) {
-    std::cout << tools::message_json(received, *decoded) << '\n';
+    std::cout << static_cast<const tools::ProbeTraffic*>(traffic)->message_json(received, *decoded)
+              << '\n';
   } else {
     std::printf("{\"t_us\": %lld, \"id\": %u, \"error\": \"%s\"}\n",
                 static_cast<long long>(received.timestamp_us), received.frame.id,
@@ -44,7 +46,7 @@ void print_frame(void* /*context*/, const hal::ReceivedCanFrame& received,
 struct Session {
   Session(hal::CanBus& bus, const std::string& name, int rate_hz, bool print_frames)
       : tap(bus, traffic), probe(tap, settings(name, rate_hz)) {
-    if (print_frames) tap.on_frame(&print_frame, nullptr);
+    if (print_frames) tap.on_frame(&print_frame, &traffic);
   }
   static pc::CanProbeSettings settings(const std::string& name, int rate_hz) {
     pc::CanProbeSettings s;

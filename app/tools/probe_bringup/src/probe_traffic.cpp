@@ -11,26 +11,16 @@ namespace pc = drivers::probe_can;
 
 namespace {
 
-std::string message_name(std::uint32_t id) {
-  switch (id) {
-    case pc::ProbeCodec::kStatusId:
-      return "ProbeStatus";
-    case pc::ProbeCodec::kOrientationId:
-      return "ProbeOrientation";
-    case pc::ProbeCodec::kInputId:
-      return "ProbeInput";
-    case pc::ProbeCodec::kHostCommandId:
-      return "HostCommand";
-    default:
-      return "unknown";
-  }
-}
-
 std::uint8_t sequence_of(const pc::ProbeMessage& m) {
   return std::visit([](const auto& v) { return v.sequence; }, m);
 }
 
 }  // namespace
+
+std::string_view ProbeTraffic::message_name(std::uint32_t id) const {
+  const drivers::probe_can::DbcMessage* m = codec_.database().message(id);
+  return m != nullptr ? std::string_view(m->name) : std::string_view("unknown");
+}
 
 double ProbeTraffic::MessageStats::rate_hz() const {
   if (frames < 2 || last_us <= first_us) return 0.0;
@@ -132,7 +122,8 @@ std::string driver_json(const pc::CanProbe& probe, const hal::CanBusStats& bus) 
   return out.str();
 }
 
-std::string message_json(const hal::ReceivedCanFrame& received, const pc::ProbeMessage& message) {
+std::string ProbeTraffic::message_json(const hal::ReceivedCanFrame& received,
+                                       const pc::ProbeMessage& message) const {
   std::ostringstream out;
   out.precision(9);
   out << "{\"t_us\": " << received.timestamp_us << ", \"message\": \""

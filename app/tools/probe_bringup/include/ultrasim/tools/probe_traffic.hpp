@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "ultrasim/drivers/probe_can/can_probe.hpp"
@@ -41,6 +42,13 @@ class ProbeTraffic {
 
   // The summary as one JSON object.
   std::string json() const;
+
+  // One decoded message as a JSON object (the frame's time and identifier included).
+  std::string message_json(const hal::ReceivedCanFrame& received,
+                           const drivers::probe_can::ProbeMessage& message) const;
+
+  // The message's name in the protocol's database ("unknown" for another identifier).
+  std::string_view message_name(std::uint32_t id) const;
 
  private:
   drivers::probe_can::ProbeCodec codec_;
@@ -83,9 +91,5 @@ class TrafficTap final : public hal::CanBus {
 // requests, the orientation arrival intervals (count, min, p50, p99, max, mean, and the
 // histogram's non-empty 100 µs bins), its counters, and the bus's stats.
 std::string driver_json(const drivers::probe_can::CanProbe& probe, const hal::CanBusStats& bus);
-
-// One decoded message as a JSON object (the frame's time and identifier included).
-std::string message_json(const hal::ReceivedCanFrame& received,
-                         const drivers::probe_can::ProbeMessage& message);
 
 }  // namespace ultrasim::tools

@@ -114,7 +114,7 @@ class CanProbe final : public hal::PoseSource {
   hal::PoseHealth health(hal::TimestampUs now_us) const;
   // Moves the state machine on at `now_us` given the health of the pose it reports.
   void advance_state(hal::TimestampUs now_us, std::optional<hal::PoseHealth> health);
-  void enter(State next, hal::TimestampUs now_us);
+  void enter(State next);
   int requested_rate_hz() const;
 
   hal::CanBus& bus_;
