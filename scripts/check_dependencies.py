@@ -387,6 +387,10 @@ def module_of_target(name: str, shape: str, folders: dict[str, str]) -> str | No
         module = module_of_path(Path(folder) / "CMakeLists.txt")
         if module is not None:
             return module
+    elif shape in ("doubleoctagon", "tripleoctagon") and not name.startswith("ultrasim"):
+        # A shared or module library built nowhere in this tree: a system package's imported
+        # target without a namespace (OpenCV's opencv_core, ...). Ours are static.
+        return None
     if re.match(r"^ultrasim_(tests?|fakes|testing)(_\w+)?$", name):
         return "tests"  # test support libraries
     m = re.match(r"^ultrasim_drivers_(\w+)$", name)
@@ -555,6 +559,8 @@ def self_test() -> int:
         '    "node1" -> "node7"  // ultrasim_render -> ultrasim_fakes',
         '    "node8" -> "node9"  // ultrasim_drivers_posix -> ultrasim_hal',
         '    "node3" -> "node0"  // ultrasim_config -> ultrasim_sim',
+        '    "node11" [ label = "opencv_core", shape = doubleoctagon ];',
+        '    "node8" -> "node11"  // ultrasim_drivers_posix -> opencv_core',
         '    "node10" [ label = "ultrasim_widgets", shape = octagon ];',
         '    "node2" -> "node10"  // ultrasim_kiosk -> ultrasim_widgets',
         '    "node0" -> "node10"  // ultrasim_sim -> ultrasim_widgets',

@@ -8,8 +8,9 @@ packages=(
   build-essential cmake ninja-build pkg-config git python3 clang-format
   # libraries (DESIGN.md §4)
   libeigen3-dev zlib1g-dev libpng-dev libtomlplusplus-dev libcli11-dev
-  # fiducials: AprilTag's families (the marker tool compares its markers with them)
-  libapriltag-dev
+  # fiducials: AprilTag's detector and families; OpenCV for capture (V4L2 or image files),
+  # image processing and the dodecahedron's PnP (libopencv-dev holds OpenCV's CMake package)
+  libapriltag-dev libopencv-dev
   # sparse Cholesky (CHOLMOD) for the exact FEM, on single-threaded OpenBLAS: the serial build
   # starts no threads of its own and is as fast on one core as the threaded one
   libsuitesparse-dev libopenblas0-serial

@@ -17,6 +17,7 @@
 #include "ultrasim/tools/code_distance.hpp"
 #include "ultrasim/tools/net_svg.hpp"
 #include "ultrasim/tracking/dodecahedron_net.hpp"
+#include "ultrasim/tracking/marker_body.hpp"
 #include "ultrasim/tracking/marker_selection.hpp"
 
 namespace {
@@ -98,9 +99,13 @@ int run_search(const std::string& net_path, double edge_mm, const std::string& k
   tagStandard41h12_destroy(t41);
   if (net_path.empty()) return 0;
   const tracking::DodecahedronNet net = tracking::make_dodecahedron_net(edge_mm, 10.0);
-  // As large as the face's inscribed circle allows, with a 10 % margin.
-  const double side_mm = 0.9 * std::sqrt(2.0) * tracking::pentagon_inradius_mm(edge_mm);
-  const auto markers = kind == "tag36h11" ? tag_markers(side_mm) : pattern_markers(best, side_mm);
+  // As large as the face allows: the size the camera tracker's model of the dodecahedron
+  // (tracking::dodecahedron_marker_body) assumes. The 3×3 patterns have no white ring of their
+  // own: they are printed at the AprilTag's black border size, leaving the card as their ring.
+  const double side_mm = tracking::largest_marker_side_mm(edge_mm);
+  const auto markers = kind == "tag36h11"
+                           ? tag_markers(side_mm)
+                           : pattern_markers(best, tracking::kTag36h11BorderFraction * side_mm);
   std::ofstream out(net_path);
   if (!out) throw std::runtime_error(net_path + ": cannot write");
   out << tools::dodecahedron_net_svg(net, markers);

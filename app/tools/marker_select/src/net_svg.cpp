@@ -87,7 +87,10 @@ std::string dodecahedron_net_svg(const tracking::DodecahedronNet& net,
                                   "'s marker has " + std::to_string(m.black.size()) +
                                   " cells for a " + std::to_string(n) + "-cell side");
     }
-    if (m.side_mm * std::sqrt(0.5) > inradius) {
+    // Turned with the face's up, the square's corners reach farthest along the normal of the
+    // edges at ±144° from up (tracking::largest_marker_side_mm).
+    const double reach = std::sin(0.8 * M_PI) + std::abs(std::cos(0.8 * M_PI));
+    if (m.side_mm / 2 * reach > inradius * (1.0 + 1e-9)) {
       throw std::invalid_argument("dodecahedron_net_svg: a " + number(m.side_mm) +
                                   " mm marker does not fit a face of edge " + number(net.edge_mm) +
                                   " mm");

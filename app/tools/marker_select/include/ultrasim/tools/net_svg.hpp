@@ -19,7 +19,7 @@ struct FaceMarker {
 
 // The net as an SVG page in millimetres: cut lines solid, folds dashed, one marker per face (in
 // face order; fewer markers leave faces blank). Throws std::invalid_argument for a marker whose
-// cell count does not match its grid or that does not fit inside its face's inscribed circle.
+// cell count does not match its grid or that does not fit inside its face.
 std::string dodecahedron_net_svg(const tracking::DodecahedronNet& net,
                                  std::span<const FaceMarker> markers);
 

@@ -1,0 +1,86 @@
+#include "ultrasim/drivers/fiducial/camera_pose_source.hpp"
+
+#include <algorithm>
+
+namespace ultrasim::drivers::fiducial {
+
+namespace {
+
+// How long the thread waits for a frame before it looks at its stop flag again.
+constexpr hal::TimestampUs kFrameWaitUs = 50'000;
+// Frame period assumed before two frames have been seen (a 30 Hz camera).
+constexpr double kDefaultPeriodUs = 33'333.0;
+
+}  // namespace
+
+CameraPoseSource::CameraPoseSource(hal::FrameSource& frames, std::unique_ptr<CameraTracker> tracker,
+                                   const hal::Clock& clock, std::string name)
+    : frames_(frames),
+      tracker_(std::move(tracker)),
+      clock_(clock),
+      name_(std::move(name)),
+      thread_([this] { run(); }) {}
+
+CameraPoseSource::~CameraPoseSource() {
+  stop_.store(true, std::memory_order_release);
+  thread_.join();
+}
+
+void CameraPoseSource::run() {
+  hal::CameraFrame frame;
+  while (!stop_.load(std::memory_order_acquire)) {
+    if (!frames_.next_frame(frame, kFrameWaitUs)) {
+      const auto health = frames_.health();
+      std::lock_guard lock(mutex_);
+      status_.camera = health;
+      status_.camera_status = std::string(frames_.status());
+      continue;
+    }
+    const hal::TimestampUs start_us = clock_.now_us();
+    const TrackResult result = tracker_->track(frame);
+    const double took_us = static_cast<double>(clock_.now_us() - start_us);
+    std::lock_guard lock(mutex_);
+    if (last_frame_us_ > 0 && frame.timestamp_us > last_frame_us_) {
+      const double period = static_cast<double>(frame.timestamp_us - last_frame_us_);
+      status_.frame_period_us =
+          status_.frame_period_us > 0.0 ? 0.9 * status_.frame_period_us + 0.1 * period : period;
+    }
+    status_.track_us = status_.track_us > 0.0 ? 0.9 * status_.track_us + 0.1 * took_us : took_us;
+    last_frame_us_ = frame.timestamp_us;
+    status_.camera = frames_.health();
+    status_.camera_status.clear();
+    status_.counters = tracker_->counters();
+    status_.last_status = result.status;
+    if (result.patient_from_probe) {
+      hal::PoseSample sample;
+      sample.timestamp_us = frame.timestamp_us;
+      sample.sequence = sequence_++;
+      sample.position_mm = result.patient_from_probe->translation();
+      sample.orientation = Eigen::Quaterniond(result.patient_from_probe->linear()).normalized();
+      sample.health = hal::PoseHealth::kOk;
+      if (hal::is_valid(sample)) last_good_ = sample;
+    }
+    frames_done_.fetch_add(1, std::memory_order_acq_rel);
+  }
+}
+
+std::optional<hal::PoseSample> CameraPoseSource::latest(hal::TimestampUs now_us) {
+  std::lock_guard lock(mutex_);
+  if (!last_good_) return std::nullopt;
+  hal::PoseSample sample = *last_good_;
+  const double period_us =
+      status_.frame_period_us > 0.0 ? status_.frame_period_us : kDefaultPeriodUs;
+  if (status_.camera == hal::FrameSourceHealth::kFault) {
+    sample.health = hal::PoseHealth::kFault;
+  } else if (static_cast<double>(now_us - sample.timestamp_us) > 3.0 * period_us) {
+    sample.health = hal::PoseHealth::kStale;
+  }
+  return sample;
+}
+
+CameraTrackingStatus CameraPoseSource::status() const {
+  std::lock_guard lock(mutex_);
+  return status_;
+}
+
+}  // namespace ultrasim::drivers::fiducial
