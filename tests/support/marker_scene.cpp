@@ -120,4 +120,18 @@ hal::CameraIntrinsics test_camera() {
   return c;
 }
 
+std::vector<Eigen::Isometry3d> sweep_poses(int frames) {
+  constexpr double kPi = 3.14159265358979323846;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int i = 0; i < frames; ++i) {
+    const double t = static_cast<double>(i) / frames;
+    const Eigen::Vector3d centre(60.0 * std::cos(2 * kPi * t), 40.0 * std::sin(2 * kPi * t),
+                                 350.0 + 50.0 * std::sin(4 * kPi * t));
+    poses.push_back(Eigen::Translation3d(centre) *
+                    Eigen::AngleAxisd(kPi * t, Eigen::Vector3d::UnitZ()) *
+                    Eigen::AngleAxisd(2 * kPi * t, Eigen::Vector3d(1.0, 1.0, 0.3).normalized()));
+  }
+  return poses;
+}
+
 }  // namespace ultrasim::test

@@ -28,4 +28,9 @@ hal::CameraFrame camera_frame(const render::RgbaImage& view, double blur_sigma_p
 // The 640 × 480 camera of the tests: 600 px focal length (a 56° horizontal field).
 hal::CameraIntrinsics test_camera();
 
+// A hand's sweep through every orientation: `frames` poses at 60 Hz (4 s for 240) turning the
+// body once about a tilted axis and half a turn about the camera's axis while it circles in
+// the image, 0.3–0.4 m away: about 90°/s and 150 mm/s.
+std::vector<Eigen::Isometry3d> sweep_poses(int frames);
+
 }  // namespace ultrasim::test

@@ -1,5 +1,7 @@
 #include "ultrasim/drivers/fiducial/camera_tracker.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace ultrasim::drivers::fiducial {
@@ -20,10 +22,41 @@ const char* to_string(TrackStatus status) {
   return "?";
 }
 
+namespace {
+
+TagDetectorSettings coarse(TagDetectorSettings fine) {
+  fine.quad_decimate = 2.0;
+  fine.upsample = 1.0;
+  fine.equalise_clip_limit = 0.0;
+  return fine;
+}
+
+// The box around a set of detections, grown by their own size and `margin_px` on each side: the
+// body's other faces lie within about one tag's size of those found.
+PixelRegion around(const std::vector<TagDetection>& found, double margin_px) {
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  for (const auto& d : found) {
+    for (const auto& c : d.corners_px) {
+      x0 = std::min(x0, c.x());
+      y0 = std::min(y0, c.y());
+      x1 = std::max(x1, c.x());
+      y1 = std::max(y1, c.y());
+    }
+  }
+  const double grow = std::max(x1 - x0, y1 - y0) + margin_px;
+  const int left = static_cast<int>(std::floor(x0 - grow));
+  const int top = static_cast<int>(std::floor(y0 - grow));
+  return {left, top, static_cast<int>(std::ceil(x1 + grow)) - left + 1,
+          static_cast<int>(std::ceil(y1 + grow)) - top + 1};
+}
+
+}  // namespace
+
 CameraTracker::CameraTracker(hal::MarkerBody body, const CameraTrackerSettings& settings)
     : body_(std::move(body)),
       settings_(settings),
       detector_(settings.detector),
+      coarse_detector_(coarse(settings.detector)),
       filter_(settings.filter) {
   if (body_.markers.empty()) throw std::invalid_argument("camera tracker: the body has no markers");
   if (body_.family != settings.detector.family) {
@@ -46,6 +79,17 @@ std::vector<TagDetection> CameraTracker::detect(const hal::CameraFrame& frame,
     if (!found.empty()) {
       result.searched_region = true;
       return found;
+    }
+  }
+  if (settings_.coarse_acquisition) {
+    ++counters_.coarse_searches;
+    const auto coarse_found = coarse_detector_.detect(frame);
+    if (!coarse_found.empty()) {
+      auto found = detector_.detect(frame, around(coarse_found, settings_.search_margin_px));
+      if (!found.empty()) {
+        result.searched_region = true;
+        return found;
+      }
     }
   }
   ++counters_.whole_image_searches;

@@ -47,7 +47,8 @@ class FrameSource {
 
   virtual FrameSourceHealth health() const = 0;
 
-  // Why the source is at fault or ended, for the log and the status line; empty while ok.
+  // Why the source is at fault or ended, or the last problem it got past (a file it skipped),
+  // for the log and the status line; empty when there is nothing to say.
   virtual std::string_view status() const = 0;
 
   // Short human-readable name ("/dev/video0", "images:/path", ...).

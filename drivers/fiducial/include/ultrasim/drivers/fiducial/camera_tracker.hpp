@@ -25,6 +25,10 @@ struct CameraTrackerSettings {
   // While tracked, only the box around the body's last projection, grown by this margin, is
   // searched (the whole image when that finds nothing). 0: always the whole image.
   double search_margin_px = 40.0;
+  // To find the body again, the whole image is searched coarsely first (AprilTag's usual
+  // decimate 2, no upsampling: ~5 ms, and it misses the steep faces), then finely only around
+  // the tags it found; the whole image finely (~30 ms) only when the coarse search finds none.
+  bool coarse_acquisition = true;
   // A pose this far from the last one (a flip: a hand cannot turn the probe that fast between
   // two frames) is held back until it repeats `confirm_jump_frames` frames in a row; then it is
   // taken as a new track.
@@ -49,7 +53,7 @@ struct TrackResult {
   std::optional<Eigen::Isometry3d> patient_from_probe;
   BodyPose body;  // the unfiltered fit, in camera space
   int tags_found = 0;
-  bool searched_region = false;  // found within the last pose's box (no whole-image search)
+  bool searched_region = false;  // found within a box (no fine whole-image search)
 };
 
 struct TrackerCounters {
@@ -62,7 +66,8 @@ struct TrackerCounters {
   std::uint64_t reacquired = 0;       // confirmed jumps: a new track taken
   std::uint64_t outlier_markers = 0;  // detections refused (far side, disagreeing corners)
   std::uint64_t region_searches = 0;
-  std::uint64_t whole_image_searches = 0;
+  std::uint64_t coarse_searches = 0;
+  std::uint64_t whole_image_searches = 0;  // fine, over the whole image
 };
 
 // The camera tracking pipeline for one marker body: detect → fit → reject → filter, one frame at
@@ -85,6 +90,7 @@ class CameraTracker {
   hal::MarkerBody body_;
   CameraTrackerSettings settings_;
   TagDetector detector_;
+  TagDetector coarse_detector_;
   PoseFilter filter_;
   std::optional<Eigen::Isometry3d> last_camera_from_body_;  // last accepted (unfiltered)
   bool tracked_last_frame_ = false;

@@ -14,8 +14,8 @@ struct PoseFilterSettings {
   double min_cutoff_hz = 1.5;
   // Added cutoff per unit of speed: Hz per mm/s (position) and per °/s (orientation). Higher =
   // less lag when moving fast.
-  double position_beta = 0.02;
-  double orientation_beta = 0.02;
+  double position_beta = 0.1;
+  double orientation_beta = 0.1;
   // Cutoff of the speed estimate itself, Hz.
   double speed_cutoff_hz = 1.0;
 };
