@@ -227,6 +227,75 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
   return t;
 }
 
+TableSchema<hal::ProbeSourceSettings> probe_schema() {
+  using S = hal::ProbeSourceSettings;
+  using K = hal::ProbeSourceKind;
+  TableSchema<S> t;
+  t.add(field("source", &S::source,
+              Choice<K>{{{"scripted", K::kScripted},
+                         {"can", K::kCan},
+                         {"can-replay", K::kCanReplay},
+                         {"camera", K::kCamera},
+                         {"camera-images", K::kCameraImages},
+                         {"keyboard", K::kKeyboard}}},
+              "Where the probe's pose comes from: scripted = the headless run's script; can = "
+              "the IMU probe on a SocketCAN interface; can-replay = a candump -l log of it; "
+              "camera = a camera watching the marker dodecahedron; camera-images = the same "
+              "from a folder of frames; keyboard = keys and mouse (desktop development)."));
+  t.add(field("can_interface", &S::can_interface, Text{true},
+              "can: the SocketCAN interface (e.g. can0, vcan0)."));
+  t.add(field("can_log", &S::can_log, Text{},
+              "can-replay: the candump -l file (ultrasim-probe-bringup --write-demo makes one)."));
+  t.add(field("replay_speed", &S::replay_speed, RealIn::closed(0.01, 100.0),
+              "can-replay: playback speed, 1 = as recorded."));
+  t.add(field("replay_loop", &S::replay_loop, Boolean{},
+              "can-replay: start again at the end of the log."));
+  t.add(field("imu_rate_hz", &S::imu_rate_hz, RealIn::closed(1.0, 2'000.0),
+              "can, can-replay: orientation rate expected until the probe's status says "
+              "otherwise; 3 periods without one make the pose stale."));
+  t.add(field("pivot_mm", &S::pivot_mm, FixedArray<RealIn, 3>{RealIn::closed(-1e4, 1e4)},
+              "can, can-replay: where the probe's face rests in patient space, mm (a 3-DOF IMU "
+              "gives orientation only)."));
+  t.add(field("compression_mm_per_n", &S::compression_mm_per_n, RealIn::closed(0.0, 100.0),
+              "can, can-replay: how far the probe's compression input presses it in along its "
+              "beam, mm per newton."));
+  t.add(field("max_compression_mm", &S::max_compression_mm, RealIn::closed(0.0, 100.0),
+              "can, can-replay: the deepest press the compression input gives, mm."));
+  t.add(field("camera_device", &S::camera_device, Text{true},
+              "camera: the V4L2 device; a missing one is reported and retried every second."));
+  t.add(field("camera_images", &S::camera_images, Text{},
+              "camera-images: a folder of frames (PNG, JPEG, PGM, BMP), played in name order."));
+  t.add(field("camera_fps", &S::camera_fps, RealIn::closed(1.0, 1'000.0),
+              "camera, camera-images: frames a second asked of the camera / played."));
+  t.add(field("camera_width_px", &S::camera_width_px, IntegerIn<int>{16, 8192},
+              "camera: image width asked of the camera."));
+  t.add(field("camera_height_px", &S::camera_height_px, IntegerIn<int>{16, 8192},
+              "camera: image height asked of the camera."));
+  t.add(field("camera_intrinsics", &S::camera_intrinsics,
+              FixedArray<RealIn, 4>{RealIn::closed(0.0, 1e5)},
+              "camera, camera-images: fx, fy, cx, cy in pixels (OpenCV's calibration)."));
+  t.add(field("camera_distortion", &S::camera_distortion,
+              FixedArray<RealIn, 5>{RealIn::closed(-100.0, 100.0)},
+              "camera, camera-images: k1, k2, p1, p2, k3 (OpenCV's calibration)."));
+  t.add(field("camera_pose", &S::camera_pose, FixedArray<RealIn, 6>{RealIn::closed(-1e4, 1e4)},
+              "camera, camera-images: the camera in patient space: x, y, z (mm), then a "
+              "rotation vector in degrees (camera looks along its +z, image y down)."));
+  t.add(field("probe_in_body", &S::probe_in_body, FixedArray<RealIn, 6>{RealIn::closed(-1e4, 1e4)},
+              "camera, camera-images: the probe's frame (face centre, +z along the beam) in the "
+              "dodecahedron's: x, y, z (mm), then a rotation vector in degrees."));
+  t.add(field("dodecahedron_edge_mm", &S::dodecahedron_edge_mm, RealIn::closed(5.0, 500.0),
+              "camera, camera-images: edge of the printed dodecahedron net, mm "
+              "(ultrasim-marker-select --net --markers tag36h11)."));
+  t.add(field("keyboard_start_mm", &S::keyboard_start_mm,
+              FixedArray<RealIn, 3>{RealIn::closed(-1e4, 1e4)},
+              "keyboard: where the probe starts in patient space, mm."));
+  t.add(field("keyboard_speed_mm_per_s", &S::keyboard_speed_mm_per_s, RealIn::closed(1.0, 1'000.0),
+              "keyboard: how fast a held key moves the probe."));
+  t.add(field("keyboard_device", &S::keyboard_device, Text{},
+              "keyboard: an evdev node (/dev/input/event*); empty: the terminal's keys."));
+  return t;
+}
+
 const DocumentSchema<AppSettings>& app_schema() {
   // Built once, read-only afterwards: safe to share between threads.
   static const DocumentSchema<AppSettings> schema = [] {
@@ -255,6 +324,8 @@ const DocumentSchema<AppSettings>& app_schema() {
     d.table("collider", &AppSettings::collider, collider_schema(),
             "The probe as the tissue feels it.");
     d.table("frame", &AppSettings::frame, frame_schema(), "The fixed per-frame time budget.");
+    d.table("probe", &AppSettings::probe, probe_schema(),
+            "Where the probe's pose comes from, and that source's settings.");
     return d;
   }();
   return schema;

@@ -1,6 +1,7 @@
 #include "bscan_panel.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 
 #include "bitmap_font.hpp"
@@ -159,6 +160,20 @@ void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, Bsca
   over.vertical_gradient_rect(bar_x, bar_y, 4.0f * s, bar_h, {255, 255, 255, 255}, {0, 0, 0, 255});
   over.outline_rect(bar_x - 1.0f, bar_y - 1.0f, 4.0f * s + 2.0f, bar_h + 2.0f, 1.0f,
                     theme::kPanelBorder);
+
+  // The tracker's trouble, along the panel's foot: the trainee sees why the image stopped
+  // following the probe.
+  if (!frame.probe_status.empty()) {
+    TextBuffer status;
+    status.append("PROBE: ");
+    for (char c : frame.probe_status) {
+      const char upper = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      status.append(std::string_view(&upper, 1));  // the bitmap font has capitals only
+    }
+    const float bottom = py + static_cast<float>(p.height_px);
+    over.fill_rect(px + 1.0f, bottom - 16.0f * s, pw - 2.0f, 15.0f * s, theme::kPanelBscan);
+    over.text(px + 6.0f * s, bottom - 12.0f * s, s, status.view(), theme::kWarning);
+  }
 
   add_depth_scale(layout, depth_mm, over);
   if (state == BscanState::kImage) {

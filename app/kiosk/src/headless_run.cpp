@@ -1,12 +1,15 @@
 #include "ultrasim/kiosk/headless_run.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
 #include "ultrasim/kiosk/frame_loop.hpp"
+#include "ultrasim/kiosk/probe_sources.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
 #include "ultrasim/kiosk/script.hpp"
 #include "ultrasim/kiosk/session.hpp"
@@ -121,8 +124,27 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   if (!options.method && !method_runs_on(tissue, settings.sim.method)) {
     settings.sim.method = first_method_for(tissue);
   }
-  const Script script = make_script(options, tissues);
-  drivers::sim_probe::ScriptedProbe probe(script.keyframes);
+  Script script = make_script(options, tissues);
+  // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
+  // the session (and its screenshots) are the same on every run.
+  hal::ManualClock script_clock;
+  const bool scripted = settings.probe.source == hal::ProbeSourceKind::kScripted;
+  const hal::TimestampUs script_duration_us = script.keyframes.back().time_us;
+  ProbeSource probe = make_probe_source(settings.probe, script.keyframes, script_clock, clock);
+  std::vector<std::pair<hal::TimestampUs, std::string>> markers;
+  if (scripted) {
+    for (const auto& k : script.keyframes)
+      if (!k.marker.empty()) markers.emplace_back(k.time_us, k.marker);
+  } else {
+    // Another source moves the probe: the script's controls and moments do not apply. A
+    // screenshot each second instead, and at the end.
+    script.controls.clear();
+    for (int s = 1; s < options.probe_seconds; ++s)
+      markers.emplace_back(s * 1'000'000, "probe-" + std::to_string(s) + "s");
+    markers.emplace_back(static_cast<hal::TimestampUs>(options.probe_seconds * 1e6), "probe-end");
+  }
+  const hal::TimestampUs run_duration_us =
+      scripted ? script_duration_us : static_cast<hal::TimestampUs>(options.probe_seconds * 1e6);
 
   render::OffscreenDisplay display(settings.display);
   render::SceneRenderer renderer(display);
@@ -143,16 +165,11 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.realtime = options.realtime;
   for (const auto& s : tissue.structures) report.surface_triangles += s.rest.triangle_count();
   report.slicer = session->slicer_name();
+  report.probe_source = probe_source_key(settings.probe.source);
   const std::int64_t budget_us = settings.frame.budget_us;
   OffscreenFrameRenderer frame_renderer(display, renderer);
   FrameLoop loop(*session, frame_renderer, clock, settings.frame);
 
-  // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
-  // the session (and its screenshots) are the same on every run.
-  hal::ManualClock script_clock;
-  std::vector<std::pair<hal::TimestampUs, std::string>> markers;
-  for (const auto& k : probe.keyframes())
-    if (!k.marker.empty()) markers.emplace_back(k.time_us, k.marker);
   std::size_t next_marker = 0;
   std::size_t next_control = 0;
   render::RgbaImage screen;
@@ -164,8 +181,16 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   }
 
   // One frame past the script's end, so its last moment is shown too.
-  const std::int64_t frame_count = probe.duration_us() / budget_us + 2;
+  const std::int64_t frame_count = run_duration_us / budget_us + 2;
+  const hal::TimestampUs real_start_us = clock.now_us();
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
+    if (probe.real_time) {
+      // A device moves in real time: each frame starts on its budget's boundary.
+      const hal::TimestampUs due = real_start_us + frame * budget_us;
+      const hal::TimestampUs wait_us = due - clock.now_us();
+      if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
+      script_clock.advance_us(clock.now_us() - real_start_us - script_clock.now_us());
+    }
     const hal::TimestampUs now = script_clock.now_us();
     while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
       const ControlEvent& event = script.controls[next_control];
@@ -202,7 +227,16 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       ++next_control;
     }
     const std::string method_key(sim::engine_key(session->method()));
-    const sched::TickReport tick = loop.run_frame(probe.latest(now));
+    // A device's samples carry the monotonic clock's time; the script's and recordings' the
+    // virtual clock's.
+    const auto sample = probe.pose->latest(probe.real_time ? clock.now_us() : now);
+    const std::string_view probe_status = probe.pose->status_text();
+    session->set_probe_status(probe_status);
+    if (!probe_status.empty()) {
+      report.probe_status_frames += 1;
+      if (report.probe_last_status != probe_status) report.probe_last_status = probe_status;
+    }
+    const sched::TickReport tick = loop.run_frame(sample);
     auto by_method = std::ranges::find(report.frame_by_method, method_key,
                                        [](const auto& entry) { return entry.first; });
     if (by_method == report.frame_by_method.end()) {
@@ -249,7 +283,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       report.snapshots.push_back(snap);
       ++next_marker;
     }
-    script_clock.advance_us(budget_us);
+    if (!probe.real_time) script_clock.advance_us(budget_us);
   }
 
   report.frame = loop.scheduler().frame_stats();

@@ -46,6 +46,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", options.soak_seed, "seed of --script soak's random session")
       ->capture_default_str();
+  app.add_option("--probe-seconds", options.probe_seconds,
+                 "how long a headless run lasts whose [probe] source is not the script (a "
+                 "recording, a device, the keyboard), seconds")
+      ->check(CLI::Range(0.1, 1e6))
+      ->capture_default_str();
   bool realtime = false;
   app.add_flag("--realtime", realtime,
                "frame threads SCHED_FIFO and pinned one per core, memory locked, where the OS "

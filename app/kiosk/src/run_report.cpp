@@ -74,6 +74,9 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"frames\": " << r.frames << ",\n"
       << "  \"frames_in_contact\": " << r.frames_in_contact << ",\n"
       << "  \"poses_rejected\": " << r.poses_rejected << ",\n"
+      << "  \"probe\": {\"source\": " << quoted(r.probe_source)
+      << ", \"status_frames\": " << r.probe_status_frames
+      << ", \"last_status\": " << quoted(r.probe_last_status) << "},\n"
       << "  \"frame_time\": ";
   write_stats(out, r.frame);
   out << ",\n  \"frame_time_by_method\": {";

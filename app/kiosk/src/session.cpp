@@ -69,6 +69,7 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
       node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f),
       structures_(tissue.structures) {
+  probe_status_.reserve(160);
   switch_method(settings.sim.method);
   rebuild_image_pipeline();
   update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
@@ -322,6 +323,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.bscan.depth_mm = static_cast<float>(extent.depth_mm());
   frame.bscan.in_contact = image_shows_tissue_;
   frame.bscan.frozen = controls_.frozen;
+  frame.probe_status = probe_status_;
 
   frame.mesh.node_positions_mm = node_positions_;
   frame.mesh.line_indices = tissue_.surface_lines;

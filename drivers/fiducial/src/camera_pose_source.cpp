@@ -19,7 +19,9 @@ CameraPoseSource::CameraPoseSource(hal::FrameSource& frames, std::unique_ptr<Cam
       tracker_(std::move(tracker)),
       clock_(clock),
       name_(std::move(name)),
-      thread_([this] { run(); }) {}
+      thread_([this] { run(); }) {
+  status_text_.reserve(160);
+}
 
 CameraPoseSource::~CameraPoseSource() {
   stop_.store(true, std::memory_order_release);
@@ -66,13 +68,28 @@ void CameraPoseSource::run() {
 
 std::optional<hal::PoseSample> CameraPoseSource::latest(hal::TimestampUs now_us) {
   std::lock_guard lock(mutex_);
-  if (!last_good_) return std::nullopt;
-  hal::PoseSample sample = *last_good_;
+  status_text_.clear();
   const double period_us =
       status_.frame_period_us > 0.0 ? status_.frame_period_us : kDefaultPeriodUs;
-  if (status_.camera == hal::FrameSourceHealth::kFault) {
+  const bool fault = status_.camera == hal::FrameSourceHealth::kFault;
+  const bool stale =
+      !last_good_ || static_cast<double>(now_us - last_good_->timestamp_us) > 3.0 * period_us;
+  if (fault) {
+    status_text_.append("camera: ").append(status_.camera_status);
+  } else if (stale) {
+    if (status_.camera == hal::FrameSourceHealth::kEnded) {
+      status_text_.append("camera: ").append(status_.camera_status);
+    } else if (status_.counters.frames == 0) {
+      status_text_.append("camera: waiting for frames");
+    } else {
+      status_text_.append("camera: ").append(to_string(status_.last_status));
+    }
+  }
+  if (!last_good_) return std::nullopt;
+  hal::PoseSample sample = *last_good_;
+  if (fault) {
     sample.health = hal::PoseHealth::kFault;
-  } else if (static_cast<double>(now_us - sample.timestamp_us) > 3.0 * period_us) {
+  } else if (stale) {
     sample.health = hal::PoseHealth::kStale;
   }
   return sample;

@@ -11,13 +11,13 @@ const char* to_string(TrackStatus status) {
     case TrackStatus::kTracked:
       return "tracked";
     case TrackStatus::kNoMarkers:
-      return "no markers";
+      return "no markers in view";
     case TrackStatus::kAmbiguous:
-      return "ambiguous";
+      return "one marker only, ambiguous";
     case TrackStatus::kInconsistent:
-      return "inconsistent markers";
+      return "markers disagree";
     case TrackStatus::kJumpHeld:
-      return "jump held";
+      return "sudden jump held back";
   }
   return "?";
 }

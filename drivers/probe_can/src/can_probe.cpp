@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <utility>
 
@@ -34,6 +35,11 @@ CanProbe::CanProbe(hal::CanBus& bus, CanProbeSettings settings)
   if (!(settings_.expected_rate_hz > 0.0) || !(settings_.stale_after_periods > 0.0)) {
     throw std::invalid_argument("CanProbe: expected_rate_hz and stale_after_periods must be > 0");
   }
+  if (!(settings_.compression_mm_per_n >= 0.0) || !(settings_.max_compression_mm >= 0.0)) {
+    throw std::invalid_argument(
+        "CanProbe: compression_mm_per_n and max_compression_mm must be >= 0");
+  }
+  status_text_.reserve(96);
   if (!(std::abs(settings_.mount.norm() - 1.0) < 1e-6)) {
     throw std::invalid_argument("CanProbe: the mount must be a unit quaternion");
   }
@@ -60,7 +66,6 @@ std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
       hal::PoseSample sample;
       sample.timestamp_us = received.timestamp_us;
       sample.sequence = ++sample_sequence_;
-      sample.position_mm = settings_.position_mm;
       sensor_ = o->orientation;
       sample.orientation = (sensor_ * settings_.mount).normalized();
       pose_ = sample;
@@ -71,16 +76,38 @@ std::optional<hal::PoseSample> CanProbe::latest(hal::TimestampUs now_us) {
     }
   }
   if (!pose_) {
+    status_text_.assign(settings_.name).append(": waiting for the probe");
     advance_state(now_us, std::nullopt);
     return std::nullopt;
   }
   hal::PoseSample out = *pose_;
+  // Pressed in along the beam by the newest compression input.
+  const double force_n = input_ ? input_->compression_force_n : 0.0;
+  const double press_mm =
+      std::min(settings_.compression_mm_per_n * force_n, settings_.max_compression_mm);
+  out.position_mm = settings_.position_mm + out.orientation * Eigen::Vector3d(0.0, 0.0, press_mm);
   out.health = health(now_us);
+  describe(now_us, out.health);
   const bool stale = out.health == hal::PoseHealth::kStale;
   counters_.stale_events += stale && !was_stale_;
   was_stale_ = stale;
   advance_state(now_us, out.health);
   return out;
+}
+
+void CanProbe::describe(hal::TimestampUs now_us, hal::PoseHealth pose_health) {
+  status_text_.clear();
+  if (pose_health == hal::PoseHealth::kOk) return;
+  if (bus_.stats().state == hal::CanBusState::kBusOff) {
+    status_text_.append(settings_.name).append(": bus off");
+  } else if (pose_health == hal::PoseHealth::kFault) {
+    status_text_.append(settings_.name).append(": probe reports an IMU fault");
+  } else {
+    const auto ms = static_cast<long long>((now_us - pose_->timestamp_us) / 1000);
+    char text[64];
+    std::snprintf(text, sizeof text, ": no orientation for %lld ms", ms);
+    status_text_.append(settings_.name).append(text);
+  }
 }
 
 int CanProbe::requested_rate_hz() const {

@@ -50,6 +50,30 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.frame.bscan_budget_us, b.frame.bscan_budget_us);
   EXPECT_EQ(a.frame.view_budget_us, b.frame.view_budget_us);
   EXPECT_EQ(a.frame.render_budget_us, b.frame.render_budget_us);
+  const auto& p = a.probe;
+  const auto& q = b.probe;
+  EXPECT_EQ(p.source, q.source);
+  EXPECT_EQ(p.can_interface, q.can_interface);
+  EXPECT_EQ(p.can_log, q.can_log);
+  EXPECT_EQ(p.replay_speed, q.replay_speed);
+  EXPECT_EQ(p.replay_loop, q.replay_loop);
+  EXPECT_EQ(p.imu_rate_hz, q.imu_rate_hz);
+  EXPECT_EQ(p.pivot_mm, q.pivot_mm);
+  EXPECT_EQ(p.compression_mm_per_n, q.compression_mm_per_n);
+  EXPECT_EQ(p.max_compression_mm, q.max_compression_mm);
+  EXPECT_EQ(p.camera_device, q.camera_device);
+  EXPECT_EQ(p.camera_images, q.camera_images);
+  EXPECT_EQ(p.camera_fps, q.camera_fps);
+  EXPECT_EQ(p.camera_width_px, q.camera_width_px);
+  EXPECT_EQ(p.camera_height_px, q.camera_height_px);
+  EXPECT_EQ(p.camera_intrinsics, q.camera_intrinsics);
+  EXPECT_EQ(p.camera_distortion, q.camera_distortion);
+  EXPECT_EQ(p.camera_pose, q.camera_pose);
+  EXPECT_EQ(p.probe_in_body, q.probe_in_body);
+  EXPECT_EQ(p.dodecahedron_edge_mm, q.dodecahedron_edge_mm);
+  EXPECT_EQ(p.keyboard_start_mm, q.keyboard_start_mm);
+  EXPECT_EQ(p.keyboard_speed_mm_per_s, q.keyboard_speed_mm_per_s);
+  EXPECT_EQ(p.keyboard_device, q.keyboard_device);
 }
 
 std::string read_file(const std::filesystem::path& path) {
@@ -116,6 +140,28 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.frame.bscan_budget_us = 2'500;
   changed.frame.view_budget_us = 300;
   changed.frame.render_budget_us = 20'000;
+  changed.probe.source = hal::ProbeSourceKind::kCameraImages;
+  changed.probe.can_interface = "vcan0";
+  changed.probe.can_log = "probe.log";
+  changed.probe.replay_speed = 2.5;
+  changed.probe.replay_loop = false;
+  changed.probe.imu_rate_hz = 400.0;
+  changed.probe.pivot_mm = {1.0, -2.5, 3.0};
+  changed.probe.compression_mm_per_n = 0.5;
+  changed.probe.max_compression_mm = 12.0;
+  changed.probe.camera_device = "/dev/video2";
+  changed.probe.camera_images = "frames";
+  changed.probe.camera_fps = 120.0;
+  changed.probe.camera_width_px = 1280;
+  changed.probe.camera_height_px = 720;
+  changed.probe.camera_intrinsics = {900.0, 905.0, 640.5, 360.25};
+  changed.probe.camera_distortion = {0.1, -0.2, 0.001, 0.002, 0.05};
+  changed.probe.camera_pose = {10.0, 20.0, -350.0, 180.0, 0.0, 0.0};
+  changed.probe.probe_in_body = {0.0, 5.0, 70.0, 0.0, 90.0, 0.0};
+  changed.probe.dodecahedron_edge_mm = 30.0;
+  changed.probe.keyboard_start_mm = {5.0, 6.0, -7.0};
+  changed.probe.keyboard_speed_mm_per_s = 80.0;
+  changed.probe.keyboard_device = "/dev/input/event3";
   expect_same(parse_app_settings(format_app_toml(changed), "formatted.toml"), changed);
 }
 

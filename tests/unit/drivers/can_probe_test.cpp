@@ -63,12 +63,37 @@ TEST_F(CanProbeTest, FreshOrientationsBecomePosesThroughTheMount) {
   EXPECT_EQ(probe.name(), "can0");
 }
 
+// The compression input presses the face in along the probe's beam, scaled and limited.
+TEST_F(CanProbeTest, CompressionPressesAlongTheBeam) {
+  CanProbeSettings settings;
+  settings.position_mm = {10, 0, 0};
+  settings.compression_mm_per_n = 2.0;
+  settings.max_compression_mm = 15.0;
+  CanProbe probe(bus_, settings);
+  // Tilted 90° about x: the beam (+z of the probe) points along patient −y.
+  const Eigen::Quaterniond tilted(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
+  orientation_at(1'000, tilted, 0);
+  EXPECT_LT((probe.latest(1'100)->position_mm - Eigen::Vector3d(10, 0, 0)).norm(), 1e-9);
+  ProbeInput input;
+  input.compression_force_n = 3.0;
+  bus_.queue.push_back({codec_.encode(input), 1'200});
+  EXPECT_LT((probe.latest(1'300)->position_mm - Eigen::Vector3d(10, -6, 0)).norm(), 1e-6);
+  input.compression_force_n = 100.0;
+  input.sequence = 1;
+  bus_.queue.push_back({codec_.encode(input), 1'400});
+  EXPECT_LT((probe.latest(1'500)->position_mm - Eigen::Vector3d(10, -15, 0)).norm(), 1e-6);
+  EXPECT_TRUE(probe.status_text().empty());
+  settings.compression_mm_per_n = -1.0;
+  EXPECT_THROW(CanProbe(bus_, settings), std::invalid_argument);
+}
+
 TEST_F(CanProbeTest, NoOrientationForThreePeriodsIsStaleWithTheLastGoodPoseKept) {
   CanProbe probe(bus_, {});
   orientation_at(0, about_z(10), 0);
   EXPECT_EQ(probe.latest(15'000)->health, hal::PoseHealth::kOk);  // 3 periods at 200 Hz
   const auto stale = probe.latest(15'001);
   EXPECT_EQ(stale->health, hal::PoseHealth::kStale);
+  EXPECT_EQ(probe.status_text(), "can0: no orientation for 15 ms");
   EXPECT_LT(stale->orientation.angularDistance(about_z(10)), 1e-4);
   probe.latest(20'000);
   EXPECT_EQ(probe.counters().stale_events, 1);
@@ -124,6 +149,7 @@ TEST_F(CanProbeTest, AnImuFaultOrABusOffIsAFault) {
   EXPECT_EQ(probe.latest(400)->health, hal::PoseHealth::kOk);
   bus_.stats_.state = hal::CanBusState::kBusOff;
   EXPECT_EQ(probe.latest(500)->health, hal::PoseHealth::kFault);
+  EXPECT_EQ(probe.status_text(), "can0: bus off");
 }
 
 TEST_F(CanProbeTest, HostCommandsGoOutOnTheBus) {

@@ -242,6 +242,7 @@ TEST(CameraPoseSource, BlankFramesGiveNoPoseAndAFaultIsReported) {
   }
   wait_for(source, 3);
   EXPECT_FALSE(source.latest(100'000).has_value());
+  EXPECT_EQ(source.status_text(), "camera: no markers in view");
   EXPECT_EQ(source.status().counters.no_markers, 3u);
   EXPECT_EQ(source.status().last_status, TrackStatus::kNoMarkers);
   frames.fail();
@@ -249,6 +250,8 @@ TEST(CameraPoseSource, BlankFramesGiveNoPoseAndAFaultIsReported) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(source.status().camera, hal::FrameSourceHealth::kFault);
   EXPECT_EQ(source.status().camera_status, "unplugged");
+  source.latest(200'000);
+  EXPECT_EQ(source.status_text(), "camera: unplugged");
 }
 
 }  // namespace

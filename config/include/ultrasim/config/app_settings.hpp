@@ -4,6 +4,7 @@
 #include <string>
 #include <string_view>
 
+#include "ultrasim/hal/probe_source_settings.hpp"
 #include "ultrasim/imaging/settings.hpp"
 #include "ultrasim/render/settings.hpp"
 #include "ultrasim/sched/settings.hpp"
@@ -28,6 +29,7 @@ struct AppSettings {
   sim::StitchingSettings stitching;
   sim::ProbeColliderSettings collider;  // [collider]
   sched::FrameBudgetSettings frame;     // [frame]
+  hal::ProbeSourceSettings probe;       // [probe]
 };
 
 // Reads and validates the app settings file at path. Every key is optional (missing keys keep the

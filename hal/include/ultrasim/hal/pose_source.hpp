@@ -19,6 +19,10 @@ class PoseSource {
 
   // Short human-readable name for logs and the stats overlay ("scripted", "can0", ...).
   virtual std::string_view name() const = 0;
+
+  // What is wrong, in a few words for the screen and the log ("camera: no markers in view",
+  // "bus off"); empty while the source is well. Valid until the next latest(); same thread.
+  virtual std::string_view status_text() const { return {}; }
 };
 
 }  // namespace ultrasim::hal

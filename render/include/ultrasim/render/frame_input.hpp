@@ -3,6 +3,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string_view>
 
 namespace ultrasim::render {
 
@@ -54,6 +55,9 @@ struct FrameInput {
   std::array<float, 3> scene_min_mm{0, 0, 0};  // bounds of the tissue, for framing the 3D view
   std::array<float, 3> scene_max_mm{1, 1, 1};
   std::int64_t frame_index = 0;
+  // Why the probe's pose is not fresh ("camera: no markers in view"), shown as a warning on the
+  // B-scan panel; empty while the tracker is well.
+  std::string_view probe_status;
 };
 
 }  // namespace ultrasim::render

@@ -21,6 +21,9 @@ struct HeadlessRunOptions {
   std::optional<sim::EngineKind> method;            // overrides the settings' [sim] method
   std::filesystem::path out_dir;                    // created if missing
   std::string script = "sweep-press";               // the scripted probe's motion
+  // How long a run lasts whose probe is not the script ([probe] source: a recording, a device,
+  // the keyboard), seconds; a screenshot is taken each second. Devices run in real time.
+  double probe_seconds = 10.0;
   // How the frame threads run (realtime scheduling, pinning, locked memory), as the composition
   // root set them up: copied into report.json.
   std::string realtime = "not requested";
@@ -33,7 +36,9 @@ struct HeadlessRunOptions {
 };
 
 // Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's
-// controls: freeze, depth) plays through the case on a fixed virtual
+// controls: freeze, depth), or the probe source the settings' [probe] names for
+// options.probe_seconds (screenshots each second; a device in real time, paced to the frame
+// budget, a recording on the virtual clock), plays through the case on a fixed virtual
 // frame clock (one frame per frame budget, so the probe's motion is deterministic); every frame
 // runs the frame loop (FrameLoop: simulated, sliced and rendered offscreen as time allows), and at
 // each of the script's markers the B-scan and the whole screen are written as PNGs. Writes

@@ -45,6 +45,11 @@ struct RunReport {
   std::string slicer;
   std::int64_t frames = 0;
   std::int64_t poses_rejected = 0;
+  // The probe's pose source ([probe] source), the frames it had something to say (not fresh:
+  // waiting, stale, fault) and the last thing it said.
+  std::string probe_source;
+  std::int64_t probe_status_frames = 0;
+  std::string probe_last_status;
   std::int64_t frames_in_contact = 0;
   std::int64_t method_switches = 0;
   std::int64_t method_switches_refused = 0;  // methods that cannot run on the case (stitched)

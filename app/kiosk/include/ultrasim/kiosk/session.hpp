@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -86,6 +87,11 @@ class Session {
   // Views of the latest results for the renderer, valid until the next update() or stage.
   render::FrameInput frame_input(std::int64_t frame_index) const;
 
+  // What the pose source says is wrong (hal::PoseSource::status_text), shown on screen until
+  // changed; empty clears it. Allocates only beyond 160 characters.
+  void set_probe_status(std::string_view status) { probe_status_.assign(status); }
+  const std::string& probe_status() const { return probe_status_; }
+
   std::span<const std::uint8_t> bscan() const { return bscan_; }
   int bscan_width_px() const { return grid_.width_px(); }
   int bscan_height_px() const { return grid_.height_px(); }
@@ -130,6 +136,7 @@ class Session {
   sim::StitchedVolume* stitched_ = nullptr;  // engine_, when it runs stitched
   std::unique_ptr<sim::DeformationEngine> make_method(sim::EngineKind method) const;
   hal::TimestampUs last_update_us_ = -1;
+  std::string probe_status_;  // reserved in the constructor
   geometry::TetLocator locator_;
   BscanControls controls_;
   imaging::ProbeGeometry probe_;         // the case's probe at the current depth

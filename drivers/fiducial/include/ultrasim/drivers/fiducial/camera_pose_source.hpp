@@ -42,6 +42,8 @@ class CameraPoseSource final : public hal::PoseSource {
   // Frame thread. Non-blocking (a short lock), no allocation.
   std::optional<hal::PoseSample> latest(hal::TimestampUs now_us) override;
   std::string_view name() const override { return name_; }
+  // While the pose is not fresh: the camera's fault, or why the last frame was not tracked.
+  std::string_view status_text() const override { return status_text_; }
 
   // Any thread. Allocates (the status text).
   CameraTrackingStatus status() const;
@@ -61,6 +63,7 @@ class CameraPoseSource final : public hal::PoseSource {
 
   mutable std::mutex mutex_;  // guards what follows
   std::optional<hal::PoseSample> last_good_;
+  std::string status_text_;  // the frame thread's copy, set by latest(); reserved
   hal::TimestampUs last_frame_us_ = 0;
   std::uint32_t sequence_ = 0;
   CameraTrackingStatus status_;

@@ -43,6 +43,11 @@ struct CanProbeSettings {
   double stale_after_periods = 3.0;
   // The IMU gives orientation only (3 DOF): where the probe's face is, in case space, mm.
   Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();
+  // The probe's compression input (a force sensor in the handle) presses the face in along its
+  // beam (+z of the probe frame): this many mm per newton, up to max_compression_mm. A
+  // displacement the simulation imposes, as the published compression buttons did.
+  double compression_mm_per_n = 0.0;
+  double max_compression_mm = 20.0;
   // Sensor to probe (mount calibration): probe orientation = sensor orientation × mount.
   Eigen::Quaterniond mount = Eigen::Quaterniond::Identity();
 };
@@ -84,11 +89,14 @@ class CanProbe final : public hal::PoseSource {
   };
 
   // `bus` must outlive the probe. Throws std::invalid_argument for a rate or stale period that
-  // is not > 0, or a mount that is not a unit quaternion.
+  // is not > 0, a negative compression scale or limit, or a mount that is not a unit
+  // quaternion.
   CanProbe(hal::CanBus& bus, CanProbeSettings settings);
 
   std::optional<hal::PoseSample> latest(hal::TimestampUs now_us) override;
   std::string_view name() const override { return settings_.name; }
+  // While the pose is not fresh: bus off, the IMU's fault, or how long nothing has come.
+  std::string_view status_text() const override { return status_text_; }
 
   const Counters& counters() const { return counters_; }
   State state() const { return state_; }
@@ -112,6 +120,8 @@ class CanProbe final : public hal::PoseSource {
  private:
   bool send(const HostCommand& command, hal::TimestampUs deadline_us);
   hal::PoseHealth health(hal::TimestampUs now_us) const;
+  // Rewrites status_text_ for a pose of this health.
+  void describe(hal::TimestampUs now_us, hal::PoseHealth pose_health);
   // Moves the state machine on at `now_us` given the health of the pose it reports.
   void advance_state(hal::TimestampUs now_us, std::optional<hal::PoseHealth> health);
   void enter(State next);
@@ -127,6 +137,7 @@ class CanProbe final : public hal::PoseSource {
   std::optional<ProbeStatus> status_;
   std::optional<ProbeInput> input_;
   bool was_stale_ = false;
+  std::string status_text_;  // reserved; rewritten by latest()
   State state_ = State::kReset;
   hal::TimestampUs state_since_us_ = -1;
   hal::TimestampUs last_request_us_ = -1;
