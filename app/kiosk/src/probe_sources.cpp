@@ -1,7 +1,6 @@
 #include "ultrasim/kiosk/probe_sources.hpp"
 
 #include <Eigen/Geometry>
-#include <cmath>
 #include <stdexcept>
 
 #include "ultrasim/drivers/camera/image_sequence.hpp"
@@ -18,20 +17,6 @@ namespace ultrasim::kiosk {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-// x, y, z (mm) then a rotation vector (degrees) as a rigid transform.
-Eigen::Isometry3d rigid(const std::array<double, 6>& v) {
-  const Eigen::Vector3d rotation(v[3], v[4], v[5]);
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  const double degrees = rotation.norm();
-  if (degrees > 0.0) {
-    out.linear() = Eigen::AngleAxisd(degrees * kPi / 180.0, rotation / degrees).toRotationMatrix();
-  }
-  out.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
-  return out;
-}
-
 std::unique_ptr<hal::PoseSource> can_probe(const hal::ProbeSourceSettings& s, hal::CanBus& bus,
                                            std::string name) {
   drivers::probe_can::CanProbeSettings settings;
@@ -43,22 +28,22 @@ std::unique_ptr<hal::PoseSource> can_probe(const hal::ProbeSourceSettings& s, ha
   return std::make_unique<drivers::probe_can::CanProbe>(bus, settings);
 }
 
-std::unique_ptr<hal::PoseSource> camera_tracker(const hal::ProbeSourceSettings& s,
-                                                hal::FrameSource& frames, const hal::Clock& clock,
-                                                std::string name) {
+std::unique_ptr<hal::PoseSource> camera_tracker(
+    const hal::ProbeSourceSettings& s, hal::FrameSource& frames, const hal::Clock& clock,
+    std::string name, drivers::fiducial::CameraPoseSource::Threading threading) {
   drivers::fiducial::CameraTrackerSettings settings;
   settings.camera.fx_px = s.camera_intrinsics[0];
   settings.camera.fy_px = s.camera_intrinsics[1];
   settings.camera.cx_px = s.camera_intrinsics[2];
   settings.camera.cy_px = s.camera_intrinsics[3];
   settings.camera.distortion = s.camera_distortion;
-  settings.patient_from_camera = rigid(s.camera_pose);
-  settings.body_from_probe = rigid(s.probe_in_body);
+  settings.patient_from_camera = tracking::rigid_from_xyz_rotvec_deg(s.camera_pose);
+  settings.body_from_probe = tracking::rigid_from_xyz_rotvec_deg(s.probe_in_body);
   const double edge = s.dodecahedron_edge_mm;
   auto tracker = std::make_unique<drivers::fiducial::CameraTracker>(
       tracking::dodecahedron_marker_body(edge, tracking::largest_marker_side_mm(edge)), settings);
   return std::make_unique<drivers::fiducial::CameraPoseSource>(frames, std::move(tracker), clock,
-                                                               std::move(name));
+                                                               std::move(name), threading);
 }
 
 }  // namespace
@@ -113,7 +98,8 @@ ProbeSource make_probe_source(const hal::ProbeSourceSettings& s,
       camera.height_px = s.camera_height_px;
       camera.frames_per_second = s.camera_fps;
       out.frames = std::make_unique<drivers::camera::V4l2CameraSource>(camera, real_clock);
-      out.pose = camera_tracker(s, *out.frames, real_clock, "camera " + s.camera_device);
+      out.pose = camera_tracker(s, *out.frames, real_clock, "camera " + s.camera_device,
+                                drivers::fiducial::CameraPoseSource::Threading::kOwnThread);
       out.real_time = true;
       break;
     }
@@ -126,7 +112,9 @@ ProbeSource make_probe_source(const hal::ProbeSourceSettings& s,
       images.frames_per_second = s.camera_fps;
       out.frames = std::make_unique<drivers::camera::ImageSequenceSource>(
           std::filesystem::path(s.camera_images), script_clock, images);
-      out.pose = camera_tracker(s, *out.frames, script_clock, "camera images");
+      // Tracked in step with the run's virtual clock: the same on every machine.
+      out.pose = camera_tracker(s, *out.frames, script_clock, "camera images",
+                                drivers::fiducial::CameraPoseSource::Threading::kCallerThread);
       break;
     }
     case hal::ProbeSourceKind::kKeyboard: {

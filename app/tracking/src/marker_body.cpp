@@ -149,6 +149,17 @@ hal::MarkerBody cube_marker_body(double edge_mm, double printed_side_mm) {
   return body;
 }
 
+Eigen::Isometry3d rigid_from_xyz_rotvec_deg(const std::array<double, 6>& v) {
+  const Eigen::Vector3d rotation(v[3], v[4], v[5]);
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  const double degrees = rotation.norm();
+  if (degrees > 0.0) {
+    out.linear() = Eigen::AngleAxisd(degrees * kPi / 180.0, rotation / degrees).toRotationMatrix();
+  }
+  out.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+  return out;
+}
+
 std::vector<std::vector<Eigen::Vector3d>> dodecahedron_faces(double edge_mm) {
   const DodecahedronNet net = make_dodecahedron_net(edge_mm);
   const auto placed = fold_dodecahedron_net(net);

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <vector>
 
 #include "ultrasim/hal/marker_model.hpp"
@@ -32,6 +33,10 @@ hal::MarkerBody dodecahedron_marker_body(double edge_mm, double printed_side_mm)
 // The published cube: tag36h11 ids 0–5, one per face, `printed_side_mm` across (white ring
 // included), centred.
 hal::MarkerBody cube_marker_body(double edge_mm, double printed_side_mm);
+
+// A rigid transform written as x, y, z (mm) then a rotation vector (axis × angle, degrees), as
+// app.toml's [probe] camera_pose and probe_in_body give them.
+Eigen::Isometry3d rigid_from_xyz_rotvec_deg(const std::array<double, 6>& values);
 
 // The bodies' faces as polygons in the body's frame (mm), corners counter-clockwise seen from
 // outside, in marker order: face i carries marker i. For drawing the bodies.

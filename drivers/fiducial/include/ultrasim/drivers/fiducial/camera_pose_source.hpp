@@ -25,21 +25,30 @@ struct CameraTrackingStatus {
 };
 
 // The camera tracker as a probe pose source: a thread takes frames from `frames` as they come,
-// tracks each, and leaves the newest tracked pose in a mailbox that latest() reads. Health: ok
+// tracks each, and leaves the newest tracked pose in a mailbox that latest() reads (or, for a
+// recording played on a virtual clock, latest() itself tracks the frames due by then, so a
+// headless run is the same on every machine). Health: ok
 // while frames keep being tracked; stale (the last good pose held) once no frame has been
 // tracked for 3 frame periods; fault when the camera fails or goes away (unplugged), with the
 // last good pose held.
 class CameraPoseSource final : public hal::PoseSource {
  public:
-  // Starts the tracking thread. `frames` and `clock` must outlive this object; `clock` must be
-  // the frames' time line (the tracking thread times its work on it).
+  enum class Threading : std::uint8_t {
+    kOwnThread,     // a live camera: tracked as frames come, beside the frame thread
+    kCallerThread,  // a recording on a virtual clock: tracked in latest(), deterministically
+  };
+
+  // Starts the tracking thread (kOwnThread). `frames` and `clock` must outlive this object;
+  // `clock` must be the frames' time line (the tracking times its work on it).
   CameraPoseSource(hal::FrameSource& frames, std::unique_ptr<CameraTracker> tracker,
-                   const hal::Clock& clock, std::string name = "camera");
+                   const hal::Clock& clock, std::string name = "camera",
+                   Threading threading = Threading::kOwnThread);
   ~CameraPoseSource() override;  // stops and joins the thread
   CameraPoseSource(const CameraPoseSource&) = delete;
   CameraPoseSource& operator=(const CameraPoseSource&) = delete;
 
-  // Frame thread. Non-blocking (a short lock), no allocation.
+  // Frame thread. kOwnThread: non-blocking (a short lock), no allocation; kCallerThread: tracks
+  // the frames due (allocates).
   std::optional<hal::PoseSample> latest(hal::TimestampUs now_us) override;
   std::string_view name() const override { return name_; }
   // While the pose is not fresh: the camera's fault, or why the last frame was not tracked.
@@ -53,11 +62,17 @@ class CameraPoseSource final : public hal::PoseSource {
 
  private:
   void run();
+  // Tracks one frame and publishes the result; mutex_ must not be held.
+  void process(const hal::CameraFrame& frame);
+  // Notes why no frame came; mutex_ must not be held.
+  void note_no_frame();
 
   hal::FrameSource& frames_;
   std::unique_ptr<CameraTracker> tracker_;
   const hal::Clock& clock_;
   std::string name_;
+  Threading threading_;
+  hal::CameraFrame caller_frame_;  // kCallerThread's buffer
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> frames_done_{0};
 
@@ -68,7 +83,7 @@ class CameraPoseSource final : public hal::PoseSource {
   std::uint32_t sequence_ = 0;
   CameraTrackingStatus status_;
 
-  std::thread thread_;  // last: starts once everything above exists
+  std::thread thread_;  // last: starts (kOwnThread) once everything above exists
 };
 
 }  // namespace ultrasim::drivers::fiducial

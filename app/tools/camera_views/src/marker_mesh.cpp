@@ -1,4 +1,4 @@
-#include "marker_scene.hpp"
+#include "ultrasim/tools/marker_mesh.hpp"
 
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
@@ -8,7 +8,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-namespace ultrasim::test {
+namespace ultrasim::tools {
 
 namespace {
 
@@ -112,26 +112,4 @@ hal::CameraFrame camera_frame(const render::RgbaImage& view, double blur_sigma_p
   return frame;
 }
 
-hal::CameraIntrinsics test_camera() {
-  hal::CameraIntrinsics c;
-  c.fx_px = c.fy_px = 600.0;
-  c.cx_px = 319.5;
-  c.cy_px = 239.5;
-  return c;
-}
-
-std::vector<Eigen::Isometry3d> sweep_poses(int frames) {
-  constexpr double kPi = 3.14159265358979323846;
-  std::vector<Eigen::Isometry3d> poses;
-  for (int i = 0; i < frames; ++i) {
-    const double t = static_cast<double>(i) / frames;
-    const Eigen::Vector3d centre(60.0 * std::cos(2 * kPi * t), 40.0 * std::sin(2 * kPi * t),
-                                 350.0 + 50.0 * std::sin(4 * kPi * t));
-    poses.push_back(Eigen::Translation3d(centre) *
-                    Eigen::AngleAxisd(kPi * t, Eigen::Vector3d::UnitZ()) *
-                    Eigen::AngleAxisd(2 * kPi * t, Eigen::Vector3d(1.0, 1.0, 0.3).normalized()));
-  }
-  return poses;
-}
-
-}  // namespace ultrasim::test
+}  // namespace ultrasim::tools

@@ -1,0 +1,143 @@
+// The kiosk driven by each recorded probe source chosen in app.toml's [probe], as a user would
+// set it up: a candump log from the bring-up tool (can-replay), and camera frames of the
+// probe's dodecahedron rendered by ultrasim-camera-views while the probe follows the case's
+// sweep and press (camera-images). Checked against the same case's scripted run.
+
+#include <gtest/gtest.h>
+#include <png.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "report_json.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ultrasim::testing::json_number;
+using ultrasim::testing::read_text;
+
+int run(const std::string& command, const fs::path& log) {
+  return std::system((command + " > " + log.string() + " 2>&1").c_str());
+}
+
+std::string json_string(const std::string& json, const std::string& key) {
+  const std::string needle = "\"" + key + "\": \"";
+  const auto at = json.find(needle);
+  if (at == std::string::npos) return "<missing " + key + ">";
+  const auto start = at + needle.size();
+  return json.substr(start, json.find('"', start) - start);
+}
+
+class ProbeSources : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("ultrasim-sources-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    const std::string kiosk =
+        std::string(ULTRASIM_KIOSK_EXE) + " --headless --case " + ULTRASIM_DEFAULT_CASE + " --out ";
+    // The recordings.
+    demo_ok_ = run(std::string(ULTRASIM_BRINGUP_EXE) + " --write-demo " +
+                       (dir_ / "demo.log").string() + " --seconds 1",
+                   dir_ / "demo.txt") == 0;
+    views_ok_ = run(std::string(ULTRASIM_CAMERA_VIEWS_EXE) + " --case " + ULTRASIM_DEFAULT_CASE +
+                        " --out " + (dir_ / "frames").string(),
+                    dir_ / "views.txt") == 0;
+    // The pivot on the skin over the middle of the case's sweep: the probe rests in contact.
+    std::ofstream(dir_ / "replay.toml")
+        << "[probe]\nsource = \"can-replay\"\ncan_log = \"" << (dir_ / "demo.log").string()
+        << "\"\npivot_mm = [-2.0, 0.0, 1.0]\n";
+    std::ofstream(dir_ / "stale.toml")
+        << "[probe]\nsource = \"can-replay\"\ncan_log = \"" << (dir_ / "demo.log").string()
+        << "\"\nreplay_loop = false\npivot_mm = [-2.0, 0.0, 1.0]\n";
+    std::ofstream(dir_ / "camera.toml") << "[probe]\nsource = \"camera-images\"\ncamera_images = \""
+                                        << (dir_ / "frames").string() << "\"\n";
+    replay_code_ = run(kiosk + (dir_ / "replay").string() + " --config " +
+                           (dir_ / "replay.toml").string() + " --probe-seconds 2",
+                       dir_ / "replay.txt");
+    stale_code_ = run(kiosk + (dir_ / "stale").string() + " --config " +
+                          (dir_ / "stale.toml").string() + " --probe-seconds 2",
+                      dir_ / "stale.txt");
+    camera_code_ = run(kiosk + (dir_ / "camera").string() + " --config " +
+                           (dir_ / "camera.toml").string() + " --probe-seconds 8",
+                       dir_ / "camera.txt");
+    script_code_ = run(kiosk + (dir_ / "script").string(), dir_ / "script.txt");
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static std::string report(const char* run_name) {
+    return read_text(dir_ / run_name / "report.json");
+  }
+
+  static inline fs::path dir_;
+  static inline bool demo_ok_ = false, views_ok_ = false;
+  static inline int replay_code_ = -1, stale_code_ = -1, camera_code_ = -1, script_code_ = -1;
+};
+
+TEST_F(ProbeSources, ACanLogReplayedMovesTheProbe) {
+  ASSERT_TRUE(demo_ok_) << read_text(dir_ / "demo.txt");
+  ASSERT_EQ(replay_code_, 0) << read_text(dir_ / "replay.txt");
+  const std::string json = report("replay");
+  EXPECT_EQ(json_string(json, "source"), "can-replay");
+  EXPECT_EQ(json_number(json, "frames"), 121);
+  EXPECT_EQ(json_number(json, "poses_rejected"), 0);
+  EXPECT_EQ(json_number(json, "status_frames"), 0);
+  EXPECT_GT(json_number(json, "frames_in_contact"), 100);
+  EXPECT_TRUE(fs::exists(dir_ / "replay" / "screen-probe-end.png"));
+}
+
+// Reddish pixels (the warning colour) along the foot of the B-scan panel of a 1280 × 720 screen.
+int warning_pixels(const fs::path& png) {
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&image, png.c_str())) return -1;
+  image.format = PNG_FORMAT_RGB;
+  std::vector<std::uint8_t> rgb(PNG_IMAGE_SIZE(image));
+  if (!png_image_finish_read(&image, nullptr, rgb.data(), 0, nullptr)) return -1;
+  int count = 0;
+  for (std::uint32_t y = image.height - 40; y < image.height; ++y) {
+    for (std::uint32_t x = image.width / 2; x < image.width; ++x) {
+      const std::uint8_t* p = &rgb[(y * image.width + x) * 3];
+      count += p[0] > 180 && p[1] < 120 && p[2] < 120;
+    }
+  }
+  return count;
+}
+
+// The log runs out after a second: the pose goes stale, the last good one is held, and the
+// screen says why.
+TEST_F(ProbeSources, AStaleProbeIsHeldAndShownOnScreen) {
+  ASSERT_EQ(stale_code_, 0) << read_text(dir_ / "stale.txt");
+  const std::string json = report("stale");
+  EXPECT_GT(json_number(json, "status_frames"), 50);
+  EXPECT_EQ(json_string(json, "last_status").rfind("replay: no orientation for ", 0), 0u);
+  EXPECT_EQ(json_number(json, "diverged_frames"), 0);
+  EXPECT_GT(warning_pixels(dir_ / "stale" / "screen-probe-end.png"), 100);
+  EXPECT_EQ(warning_pixels(dir_ / "replay" / "screen-probe-end.png"), 0);
+}
+
+// The camera tracks the dodecahedron through the sweep and the press: the tissue is pressed as
+// hard as when the script moves the probe directly.
+TEST_F(ProbeSources, CameraFramesTrackTheScriptedPress) {
+  ASSERT_TRUE(views_ok_) << read_text(dir_ / "views.txt");
+  ASSERT_EQ(camera_code_, 0) << read_text(dir_ / "camera.txt");
+  ASSERT_EQ(script_code_, 0) << read_text(dir_ / "script.txt");
+  const std::string camera = report("camera");
+  const std::string script = report("script");
+  EXPECT_EQ(json_string(camera, "source"), "camera-images");
+  const double frames = json_number(camera, "frames");
+  EXPECT_EQ(frames, 481);
+  EXPECT_LE(json_number(camera, "poses_rejected"), 2);
+  EXPECT_EQ(json_number(camera, "status_frames"), 0);
+  // The probe hovers for the first 0.75 s, then stays on the skin (measured: 436 of 481).
+  EXPECT_GT(json_number(camera, "frames_in_contact"), 0.85 * frames);
+  const double tracked_force = json_number(camera, "max_contact_force_n");
+  const double scripted_force = json_number(script, "max_contact_force_n");
+  EXPECT_NEAR(tracked_force, scripted_force, 0.05 * scripted_force);  // measured: 0.7 % apart
+}
+
+}  // namespace
