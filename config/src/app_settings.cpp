@@ -242,6 +242,9 @@ TableSchema<hal::ProbeSourceSettings> probe_schema() {
               "the IMU probe on a SocketCAN interface; can-replay = a candump -l log of it; "
               "camera = a camera watching the marker dodecahedron; camera-images = the same "
               "from a folder of frames; keyboard = keys and mouse (desktop development)."));
+  t.add(field("motion_file", &S::motion_file, Text{},
+              "scripted: a motion file (one keyframe a line: time_s x_mm y_mm z_mm rx_deg ry_deg "
+              "rz_deg [marker]) played instead of the built-in script; empty: the built-in one."));
   t.add(field("can_interface", &S::can_interface, Text{true},
               "can: the SocketCAN interface (e.g. can0, vcan0)."));
   t.add(field("can_log", &S::can_log, Text{},

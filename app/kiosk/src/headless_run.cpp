@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "ultrasim/config/app_settings.hpp"
+#include "ultrasim/drivers/sim_probe/motion_file.hpp"
 #include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
 #include "ultrasim/kiosk/frame_loop.hpp"
 #include "ultrasim/kiosk/probe_sources.hpp"
@@ -124,7 +125,10 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   if (!options.method && !method_runs_on(tissue, settings.sim.method)) {
     settings.sim.method = first_method_for(tissue);
   }
-  Script script = make_script(options, tissues);
+  Script script = settings.probe.source == hal::ProbeSourceKind::kScripted &&
+                          !settings.probe.motion_file.empty()
+                      ? Script{drivers::sim_probe::read_motion_file(settings.probe.motion_file), {}}
+                      : make_script(options, tissues);
   // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
   // the session (and its screenshots) are the same on every run.
   hal::ManualClock script_clock;

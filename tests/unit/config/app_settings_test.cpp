@@ -53,6 +53,7 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   const auto& p = a.probe;
   const auto& q = b.probe;
   EXPECT_EQ(p.source, q.source);
+  EXPECT_EQ(p.motion_file, q.motion_file);
   EXPECT_EQ(p.can_interface, q.can_interface);
   EXPECT_EQ(p.can_log, q.can_log);
   EXPECT_EQ(p.replay_speed, q.replay_speed);
@@ -141,6 +142,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.frame.view_budget_us = 300;
   changed.frame.render_budget_us = 20'000;
   changed.probe.source = hal::ProbeSourceKind::kCameraImages;
+  changed.probe.motion_file = "sweep.motion";
   changed.probe.can_interface = "vcan0";
   changed.probe.can_log = "probe.log";
   changed.probe.replay_speed = 2.5;

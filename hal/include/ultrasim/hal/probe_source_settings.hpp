@@ -21,6 +21,10 @@ enum class ProbeSourceKind : std::uint8_t {
 struct ProbeSourceSettings {
   ProbeSourceKind source = ProbeSourceKind::kScripted;
 
+  // --- scripted: a motion file (drivers/sim_probe/motion_file.hpp) played instead of the
+  // headless run's built-in script; empty: the built-in one.
+  std::string motion_file;
+
   // --- can, can-replay: a 3-DOF IMU gives orientation only.
   std::string can_interface = "can0";
   std::string can_log;  // can-replay: the candump -l file
