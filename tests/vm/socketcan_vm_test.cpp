@@ -181,6 +181,38 @@ TEST_F(SocketCanVmTest, TheBringUpToolListensLiveThroughTheProbeDriver) {
   EXPECT_NE(summary.find("\"rx_frames\": 210"), std::string::npos);
 }
 
+// Bring-up without hardware: one tool plays the probe's firmware on vcan0, the other configures
+// it through the probe driver, re-rates it to 100 Hz and times 100 status requests end to end.
+TEST_F(SocketCanVmTest, TheBringUpToolTimesRoundTripsToASimulatedProbe) {
+  std::remove("firmware.json");
+  std::remove("host.json");
+  ASSERT_EQ(std::system("(" ULTRASIM_BRINGUP_EXE
+                        " --simulate-probe --interface vcan0 --seconds 6 > firmware.partial && "
+                        "mv firmware.partial firmware.json) & sleep 0.3"),
+            0);
+  ASSERT_EQ(std::system(ULTRASIM_BRINGUP_EXE " --interface vcan0 --seconds 1 --rate 100 "
+                                             "--round-trips 100 > host.json"),
+            0);
+  std::string host;
+  std::getline(std::ifstream("host.json") >> std::ws, host);
+  std::printf("host: %s\n", host.c_str());
+  EXPECT_NE(host.find("\"state\": \"streaming\""), std::string::npos);
+  EXPECT_NE(host.find("\"round_trip\": {\"count\": 100, \"lost\": 0"), std::string::npos);
+  const auto p99_at = host.find("\"p99_us\": ", host.find("\"round_trip\""));
+  ASSERT_NE(p99_at, std::string::npos);
+  const long p99_us = std::stol(host.substr(p99_at + 10));
+  EXPECT_LT(p99_us, 5'000) << "status request to answer, p99";
+  std::string firmware;
+  for (int i = 0; i < 200 && firmware.empty(); ++i) {
+    std::this_thread::sleep_for(50ms);
+    std::ifstream in("firmware.json");
+    std::getline(in, firmware);
+  }
+  std::printf("firmware: %s\n", firmware.c_str());
+  EXPECT_NE(firmware.find("\"rate_hz\": 100"), std::string::npos);
+  EXPECT_NE(firmware.find("\"commands_refused\": 0"), std::string::npos);
+}
+
 TEST_F(SocketCanVmTest, AnOverflowingReceiveQueueIsCounted) {
   SocketCanBus receiver("vcan0", clock_);
   SocketCanBus sender("vcan0", clock_);
