@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "marker_scene.hpp"
@@ -76,6 +77,11 @@ Outcome measure(const hal::MarkerBody& body, const std::vector<std::vector<Eigen
   const hal::CameraIntrinsics camera = test::test_camera();
   render::OffscreenDisplay display({render::DisplayBackend::kOffscreen, 640, 480}, {4});
   render::CameraViewRenderer renderer(test::marker_body_mesh(body, faces));
+  // Per view, for the accuracy chart (scripts/plot_fiducial_accuracy.py).
+  const auto dir = std::filesystem::path(ULTRASIM_BINARY_DIR) / "fiducial_views";
+  std::filesystem::create_directories(dir);
+  std::ofstream csv(dir / (std::string(png_prefix) + ".csv"));
+  csv << "view,distance_mm,markers,tracked,position_error_mm,rotation_error_deg\n";
   Outcome out;
   for (std::size_t i = 0; i < views.size(); ++i) {
     const View& v = views[i];
@@ -85,35 +91,8 @@ Outcome measure(const hal::MarkerBody& body, const std::vector<std::vector<Eigen
     const auto image = display.read_pixels();
     const hal::CameraFrame frame = test::camera_frame(image, v.blur_sigma_px, v.noise_sigma, i);
     if (i < 4) {
-      const auto dir = std::filesystem::path(ULTRASIM_BINARY_DIR) / "fiducial_views";
-      std::filesystem::create_directories(dir);
       render::write_png_grey(dir / (std::string(png_prefix) + std::to_string(i) + ".png"),
                              frame.grey, frame.width, frame.height);
-      {
-        TagDetector det{TagDetectorSettings{}};
-        const auto found = det.detect(frame);
-        for (const auto& t : found) {
-          const auto& m = body.markers[t.id];
-          for (int k = 0; k < 4; ++k) {
-            Eigen::Vector3d p = v.camera_from_body * m.corners_mm[k];
-            std::printf("   id %d corner %d det (%.1f %.1f) true (%.1f %.1f)\n", t.id, k,
-                        t.corners_px[k].x(), t.corners_px[k].y(), 600 * p.x() / p.z() + 319.5,
-                        600 * p.y() / p.z() + 239.5);
-          }
-          const auto bp = estimate_body_pose(body, camera, found, std::nullopt);
-          std::printf("   status %d rms %.2f\n", (int)bp.status, bp.rms_error_px);
-        }
-      }
-      TagDetectorSettings loose;
-      loose.min_decision_margin = 0;
-      loose.max_hamming = 2;
-      for (double sigma : {0.0, 0.8}) {
-        loose.quad_sigma = sigma;
-        TagDetector det(loose);
-        for (const auto& t : det.detect(frame))
-          std::printf("   sigma %.1f id %d hamming %d margin %.1f\n", sigma, t.id, t.hamming,
-                      t.decision_margin);
-      }
     }
     CameraTrackerSettings settings;
     settings.camera = camera;
@@ -124,8 +103,10 @@ Outcome measure(const hal::MarkerBody& body, const std::vector<std::vector<Eigen
     out.fewest_markers = std::min(out.fewest_markers, markers);
     if (markers >= 3) ++out.at_least_three;
     if (r.body.ambiguous || r.status == TrackStatus::kAmbiguous) ++out.ambiguous;
+    const double distance_mm = v.camera_from_body.translation().norm();
     if (r.status != TrackStatus::kTracked) {
       out.rotation_deg.push_back(std::nan(""));
+      csv << i << ',' << distance_mm << ',' << markers << ",0,,\n";
       continue;
     }
     ++out.tracked;
@@ -137,6 +118,8 @@ Outcome measure(const hal::MarkerBody& body, const std::vector<std::vector<Eigen
     out.worst_rotation_deg = std::max(out.worst_rotation_deg, rotation);
     if (rotation > 5.0) ++out.flips;
     out.rotation_deg.push_back(rotation);
+    csv << i << ',' << distance_mm << ',' << markers << ",1," << position << ',' << rotation
+        << '\n';
   }
   return out;
 }
