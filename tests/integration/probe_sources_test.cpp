@@ -3,8 +3,11 @@
 // probe's dodecahedron rendered by ultrasim-camera-views while the probe follows the case's
 // sweep and press (camera-images). Checked against the same case's scripted run.
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <linux/input.h>
 #include <png.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -66,6 +69,33 @@ class ProbeSources : public ::testing::Test {
                            (dir_ / "camera.toml").string() + " --probe-seconds 8",
                        dir_ / "camera.txt");
     script_code_ = run(kiosk + (dir_ / "script").string(), dir_ / "script.txt");
+    // The keyboard source reading evdev records from a FIFO the test holds open (a device that
+    // stays plugged in): a mouse move and a wheel press.
+    const fs::path fifo = dir_ / "mouse.evdev";
+    ::mkfifo(fifo.c_str(), 0600);
+    const int device = ::open(fifo.c_str(), O_RDWR | O_NONBLOCK);
+    const auto record = [device](std::uint16_t type, std::uint16_t code, std::int32_t value) {
+      input_event e{};
+      e.type = type;
+      e.code = code;
+      e.value = value;
+      return ::write(device, &e, sizeof e) == static_cast<ssize_t>(sizeof e);
+    };
+    keyboard_written_ = device >= 0 && record(EV_REL, REL_X, -20) &&  // 2 mm to the left
+                        record(EV_REL, REL_WHEEL, -12) &&  // 6 mm down: 1 mm into the skin
+                        record(EV_SYN, SYN_REPORT, 0);
+    std::ofstream(dir_ / "keyboard.toml")
+        << "[probe]\nsource = \"keyboard\"\nkeyboard_device = \"" << fifo.string() << "\"\n";
+    keyboard_code_ = run(kiosk + (dir_ / "keyboard").string() + " --config " +
+                             (dir_ / "keyboard.toml").string() + " --probe-seconds 1",
+                         dir_ / "keyboard.txt");
+    if (device >= 0) ::close(device);
+    // A camera that is not plugged in.
+    std::ofstream(dir_ / "unplugged.toml")
+        << "[probe]\nsource = \"camera\"\ncamera_device = \"/dev/video-ultrasim-none\"\n";
+    unplugged_code_ = run(kiosk + (dir_ / "unplugged").string() + " --config " +
+                              (dir_ / "unplugged.toml").string() + " --probe-seconds 1",
+                          dir_ / "unplugged.txt");
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
@@ -75,7 +105,9 @@ class ProbeSources : public ::testing::Test {
 
   static inline fs::path dir_;
   static inline bool demo_ok_ = false, views_ok_ = false;
-  static inline int replay_code_ = -1, stale_code_ = -1, camera_code_ = -1, script_code_ = -1;
+  static inline int replay_code_ = -1, stale_code_ = -1, camera_code_ = -1, script_code_ = -1,
+                    keyboard_code_ = -1, unplugged_code_ = -1;
+  static inline bool keyboard_written_ = false;
 };
 
 TEST_F(ProbeSources, ACanLogReplayedMovesTheProbe) {
@@ -138,6 +170,31 @@ TEST_F(ProbeSources, CameraFramesTrackTheScriptedPress) {
   const double tracked_force = json_number(camera, "max_contact_force_n");
   const double scripted_force = json_number(script, "max_contact_force_n");
   EXPECT_NEAR(tracked_force, scripted_force, 0.05 * scripted_force);  // measured: 0.7 % apart
+}
+
+// The keyboard source in the app: the mouse moves the probe from above the skin onto it. (A
+// device going away is keyboard_probe_test's.)
+TEST_F(ProbeSources, TheKeyboardSourceMovesTheProbe) {
+  ASSERT_TRUE(keyboard_written_);
+  ASSERT_EQ(keyboard_code_, 0) << read_text(dir_ / "keyboard.txt");
+  const std::string json = report("keyboard");
+  EXPECT_EQ(json_string(json, "source"), "keyboard");
+  EXPECT_EQ(json_number(json, "status_frames"), 0);
+  EXPECT_EQ(json_number(json, "poses_rejected"), 0);
+  EXPECT_GT(json_number(json, "frames_in_contact"), 0.9 * json_number(json, "frames"));
+}
+
+// No camera: the kiosk runs on, says so on screen and in the report, and never moves the probe.
+TEST_F(ProbeSources, AMissingCameraIsReportedNotFatal) {
+  ASSERT_EQ(unplugged_code_, 0) << read_text(dir_ / "unplugged.txt");
+  const std::string json = report("unplugged");
+  EXPECT_EQ(json_string(json, "source"), "camera");
+  const double frames = json_number(json, "frames");
+  EXPECT_EQ(json_number(json, "status_frames"), frames);
+  EXPECT_EQ(json_number(json, "frames_in_contact"), 0);
+  EXPECT_NE(json_string(json, "last_status").find("/dev/video-ultrasim-none: cannot open"),
+            std::string::npos);
+  EXPECT_GT(warning_pixels(dir_ / "unplugged" / "screen-probe-end.png"), 100);
 }
 
 }  // namespace

@@ -5,7 +5,8 @@
 #
 # This machine's kernel has no AF_CAN, so the SocketCAN tests boot Debian's own kernel under QEMU
 # (software emulation: the nested /dev/kvm here cannot boot it) with a busybox initramfs that loads
-# the CAN and virtio-9p modules, creates vcan0, shares the host's root read-only over 9p, and runs
+# the CAN, virtio-9p and vivid (virtual camera) modules, creates vcan0, shares the host's root
+# read-only over 9p, and runs
 # COMMAND chrooted into it (host binaries and can-utils run unchanged) in /var/tmp, a scratch
 # tmpfs ($TMPDIR). The guest reports the
 # status through QEMU's isa-debug-exit port. Everything comes from Debian's packages: the kernel
@@ -52,7 +53,8 @@ add_module() {
   for dep in $(strings -a "$ko" | sed -n 's/^depends=//p' | tr ',' ' '); do add_module "$dep"; done
   order+=("$ko")
 }
-for name in can can-raw can-dev vcan 9pnet_virtio 9p virtio_pci; do add_module "$name"; done
+# vivid: the kernel's virtual video driver, a camera at /dev/video0 for the V4L2 driver's test.
+for name in can can-raw can-dev vcan 9pnet_virtio 9p virtio_pci vivid; do add_module "$name"; done
 
 # The initramfs: busybox, the modules, and an init that runs the command.
 initrd=$work/initrd-$version.cpio

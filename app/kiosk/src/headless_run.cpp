@@ -1,7 +1,9 @@
 #include "ultrasim/kiosk/headless_run.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cstdio>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -85,6 +87,19 @@ class OffscreenFrameRenderer final : public FrameRenderer {
   render::OffscreenDisplay& display_;
   render::SceneRenderer& renderer_;
 };
+
+// Whether two statuses of the probe's source tell the same trouble: equal but for their
+// numbers ("no orientation for 12 ms" and "... 29 ms"), so the log gets a line per change, not
+// per frame.
+bool same_trouble(std::string_view a, std::string_view b) {
+  std::size_t i = 0, j = 0;
+  while (true) {
+    while (i < a.size() && std::isdigit(static_cast<unsigned char>(a[i]))) ++i;
+    while (j < b.size() && std::isdigit(static_cast<unsigned char>(b[j]))) ++j;
+    if (i == a.size() || j == b.size()) return i == a.size() && j == b.size();
+    if (a[i++] != b[j++]) return false;
+  }
+}
 
 // The kiosk's default for a case: the first live method that runs on it.
 sim::EngineKind first_method_for(const TissueCase& tissue) {
@@ -235,6 +250,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     // virtual clock's.
     const auto sample = probe.pose->latest(probe.real_time ? clock.now_us() : now);
     const std::string_view probe_status = probe.pose->status_text();
+    if (options.log_line && !same_trouble(probe_status, session->probe_status())) {
+      char when[32];
+      std::snprintf(when, sizeof when, "%.3f s: probe ", static_cast<double>(now) * 1e-6);
+      options.log_line(when +
+                       (probe_status.empty() ? std::string("ok") : std::string(probe_status)));
+    }
     session->set_probe_status(probe_status);
     if (!probe_status.empty()) {
       report.probe_status_frames += 1;

@@ -146,6 +146,9 @@ int main(int argc, char** argv) {
     }
     if (realtime) std::cerr << "ultrasim-kiosk: realtime: " << options.realtime << "\n";
     options.resident_memory_kib = posix::resident_memory_kib;
+    options.log_line = [](const std::string& line) {
+      std::cerr << "ultrasim-kiosk: " << line << '\n';
+    };
     const auto report = ultrasim::kiosk::run_headless(options, clock, jobs);
     std::cout << "ultrasim-kiosk: wrote " << report.string() << "\n";
     return 0;

@@ -33,6 +33,9 @@ struct HeadlessRunOptions {
   // The process's resident memory in KiB (an OS query the composition root injects), sampled
   // once a second of the script into report.json; unset: not sampled.
   std::function<std::int64_t()> resident_memory_kib;
+  // Where the run says what happens to the probe's source (a line when its trouble starts,
+  // changes or clears, with the run's time); unset: nowhere.
+  std::function<void(const std::string&)> log_line;
 };
 
 // Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's
