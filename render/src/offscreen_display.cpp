@@ -263,16 +263,21 @@ void OffscreenDisplay::begin_frame() {
 }
 
 void OffscreenDisplay::end_frame() {
-  if (impl_->msaa_fbo == 0) return;
-  // Resolve the samples into the single-sample target that read_pixels_into reads.
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, impl_->msaa_fbo);
-  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, impl_->fbo);
-  glBlitFramebuffer(0, 0, impl_->width_px, impl_->height_px, 0, 0, impl_->width_px,
-                    impl_->height_px, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-  // The multisampled depth is not needed past this point; saying so spares tiled GPUs a store.
-  glBindFramebuffer(GL_FRAMEBUFFER, impl_->msaa_fbo);
-  const GLenum discard[] = {GL_DEPTH_ATTACHMENT};
-  glInvalidateFramebuffer(GL_FRAMEBUFFER, 1, discard);
+  if (impl_->msaa_fbo != 0) {
+    // Resolve the samples into the single-sample target that read_pixels_into reads.
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, impl_->msaa_fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, impl_->fbo);
+    glBlitFramebuffer(0, 0, impl_->width_px, impl_->height_px, 0, 0, impl_->width_px,
+                      impl_->height_px, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    // The multisampled depth is not needed past this point; saying so spares tiled GPUs a store.
+    glBindFramebuffer(GL_FRAMEBUFFER, impl_->msaa_fbo);
+    const GLenum discard[] = {GL_DEPTH_ATTACHMENT};
+    glInvalidateFramebuffer(GL_FRAMEBUFFER, 1, discard);
+  }
+  // There is no scan-out to wait for: the frame counts as shown once it is drawn. Waiting here
+  // puts the rasteriser's work (deferred until a flush on llvmpipe) in this frame's time, where
+  // a display's page flip would put it, and makes end_frame's return the frame's presentation.
+  glFinish();
 }
 
 void OffscreenDisplay::read_pixels_into(RgbaImage& out) {

@@ -120,6 +120,12 @@ TEST_F(ProbeSources, ACanLogReplayedMovesTheProbe) {
   EXPECT_EQ(json_number(json, "status_frames"), 0);
   EXPECT_GT(json_number(json, "frames_in_contact"), 100);
   EXPECT_TRUE(fs::exists(dir_ / "replay" / "screen-probe-end.png"));
+  // Every frame took a new pose: each has a probe-to-photon time (not judged here: speed is
+  // the benchmarks').
+  const auto latency = json.find("\"probe_to_photon\"");
+  ASSERT_NE(latency, std::string::npos);
+  EXPECT_EQ(json_number(json, "count", latency), 121);
+  EXPECT_GT(json_number(json, "p50_us", latency), 0);
 }
 
 // Reddish pixels (the warning colour) along the foot of the B-scan panel of a 1280 × 720 screen.

@@ -24,8 +24,11 @@ std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings
   }};
 }
 
-sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sample) {
+sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sample,
+                                       std::int64_t sample_age_us) {
   sample_ = sample;
+  sample_age_us_ = std::max<std::int64_t>(sample_age_us, 0);
+  frame_start_us_ = clock_.now_us();
   return scheduler_.tick();
 }
 
@@ -49,6 +52,11 @@ void FrameLoop::view(void* self, const sched::TaskTick&) {
 void FrameLoop::render(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
   loop->renderer_.render(*loop->session_, tick.tick_index);
+  // Only a frame that took a new pose shows a probe position this new.
+  if (loop->sample_ && !loop->outcome_.pose_rejected) {
+    loop->probe_to_photon_.record(loop->sample_age_us_ + loop->clock_.now_us() -
+                                  loop->frame_start_us_);
+  }
 }
 
 }  // namespace ultrasim::kiosk

@@ -248,7 +248,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     const std::string method_key(sim::engine_key(session->method()));
     // A device's samples carry the monotonic clock's time; the script's and recordings' the
     // virtual clock's.
-    const auto sample = probe.pose->latest(probe.real_time ? clock.now_us() : now);
+    const hal::TimestampUs source_now = probe.real_time ? clock.now_us() : now;
+    const auto sample = probe.pose->latest(source_now);
     const std::string_view probe_status = probe.pose->status_text();
     if (options.log_line && !same_trouble(probe_status, session->probe_status())) {
       char when[32];
@@ -261,7 +262,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       report.probe_status_frames += 1;
       if (report.probe_last_status != probe_status) report.probe_last_status = probe_status;
     }
-    const sched::TickReport tick = loop.run_frame(sample);
+    const sched::TickReport tick =
+        loop.run_frame(sample, sample ? source_now - sample->timestamp_us : 0);
     auto by_method = std::ranges::find(report.frame_by_method, method_key,
                                        [](const auto& entry) { return entry.first; });
     if (by_method == report.frame_by_method.end()) {
@@ -312,6 +314,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   }
 
   report.frame = loop.scheduler().frame_stats();
+  report.probe_to_photon = loop.probe_to_photon();
   report.tasks.assign(loop.scheduler().task_stats().begin(), loop.scheduler().task_stats().end());
   const auto report_path = options.out_dir / "report.json";
   write_report_json(report_path, report);

@@ -77,7 +77,9 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"probe\": {\"source\": " << quoted(r.probe_source)
       << ", \"status_frames\": " << r.probe_status_frames
       << ", \"last_status\": " << quoted(r.probe_last_status) << "},\n"
-      << "  \"frame_time\": ";
+      << "  \"probe_to_photon\": ";
+  write_stats(out, r.probe_to_photon);
+  out << ",\n  \"frame_time\": ";
   write_stats(out, r.frame);
   out << ",\n  \"frame_time_by_method\": {";
   for (std::size_t i = 0; i < r.frame_by_method.size(); ++i) {

@@ -101,3 +101,29 @@ TEST_F(FrameLoopTest, WithNoTimeLeftTheBscanAndViewHoldThenLagButNeverFreeze) {
 
 }  // namespace
 }  // namespace ultrasim::kiosk
+
+namespace ultrasim::kiosk {
+namespace {
+
+// Probe to photon: the sample's age when the frame starts plus the frame's own time to its
+// presentation; a frame whose sample was refused (the last good pose shown) adds nothing.
+TEST_F(FrameLoopTest, ProbeToPhotonCountsTheSamplesAgeAndTheFrame) {
+  Session session(tissue_, settings_, clock_, jobs_);
+  RecordingRenderer renderer(clock_, 5'000);
+  FrameLoop loop(session, renderer, clock_, settings_.frame);
+  loop.run_frame(pose_at(0.3), 4'000);
+  ASSERT_EQ(loop.probe_to_photon().count(), 1);
+  // 4 ms old at the start, then the frame: the manual clock moves only in the renderer.
+  EXPECT_EQ(loop.probe_to_photon().max_us(), 9'000);
+  hal::PoseSample bad = pose_at(0.3);
+  bad.position_mm.x() = std::nan("");
+  loop.run_frame(bad, 1'000);
+  loop.run_frame(std::nullopt);
+  EXPECT_EQ(loop.probe_to_photon().count(), 1);
+  loop.run_frame(pose_at(0.3), 40'000);
+  EXPECT_EQ(loop.probe_to_photon().count(), 2);
+  EXPECT_EQ(loop.probe_to_photon().deadline_misses(), 1);  // 45 ms > 33 ms
+}
+
+}  // namespace
+}  // namespace ultrasim::kiosk

@@ -24,7 +24,8 @@ class Display {
   // Binds the frame's framebuffer and sets the viewport to the whole drawable. No allocation.
   virtual void begin_frame() = 0;
 
-  // Finishes the frame (resolves multisampling, later: queues the page flip). No allocation.
+  // Finishes the frame (resolves multisampling, later: queues the page flip). When it returns
+  // the frame counts as presented (the probe-to-photon measure ends here). No allocation.
   virtual void end_frame() = 0;
 
   // Copies the last finished frame into out, rows top first. Waits for the GPU (a pipeline

@@ -13,6 +13,7 @@
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/hal/pose_sample.hpp"
 #include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/sched/frame_time_stats.hpp"
 #include "ultrasim/sched/scheduler.hpp"
 #include "ultrasim/sched/settings.hpp"
 
@@ -43,9 +44,18 @@ class FrameLoop {
   FrameLoop(const FrameLoop&) = delete;
   FrameLoop& operator=(const FrameLoop&) = delete;
 
-  // One frame with the newest tracker sample: the tasks that fit, in order. From the frame
-  // thread. Does not allocate (beyond what the session and renderer do).
-  sched::TickReport run_frame(const std::optional<hal::PoseSample>& sample);
+  // One frame with the newest tracker sample: the tasks that fit, in order. `sample_age_us`:
+  // how old the sample is now, on its source's clock (a device's samples are stamped in real
+  // time, a recording's or the script's in the run's virtual time). From the frame thread. Does
+  // not allocate (beyond what the session and renderer do).
+  sched::TickReport run_frame(const std::optional<hal::PoseSample>& sample,
+                              std::int64_t sample_age_us = 0);
+
+  // Probe to photon: from the moment the pose a frame used was measured to that frame being
+  // presented (the renderer's return: Display::end_frame), for every frame that took a new
+  // pose. Over 33,333 µs counts as a miss (DESIGN.md §5's target).
+  const sched::FrameTimeStats& probe_to_photon() const { return probe_to_photon_; }
+  static constexpr std::int64_t kProbeToPhotonTargetUs = 33'333;
 
   // What the simulation did this frame.
   const FrameOutcome& outcome() const { return outcome_; }
@@ -63,7 +73,10 @@ class FrameLoop {
   const hal::Clock& clock_;
   std::int64_t simulation_budget_us_;
   std::optional<hal::PoseSample> sample_;
+  std::int64_t sample_age_us_ = 0;
+  hal::TimestampUs frame_start_us_ = 0;
   FrameOutcome outcome_;
+  sched::FrameTimeStats probe_to_photon_{kProbeToPhotonTargetUs};
   sched::Scheduler scheduler_;
 };
 

@@ -50,6 +50,8 @@ struct RunReport {
   std::string probe_source;
   std::int64_t probe_status_frames = 0;
   std::string probe_last_status;
+  // From each accepted pose's measurement to its frame's presentation (FrameLoop).
+  sched::FrameTimeStats probe_to_photon;
   std::int64_t frames_in_contact = 0;
   std::int64_t method_switches = 0;
   std::int64_t method_switches_refused = 0;  // methods that cannot run on the case (stitched)
