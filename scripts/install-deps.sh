@@ -16,6 +16,8 @@ packages=(
   libsuitesparse-dev libopenblas0-serial
   # headless EGL + GLES on Mesa's software rasteriser (libgl1-mesa-dri holds swrast/llvmpipe)
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
+  # the dedicated display: DRM/KMS page flips and GBM buffers (render/kms_display)
+  libdrm-dev libgbm-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # reference FEM solver for the accuracy tests (DESIGN.md §4)

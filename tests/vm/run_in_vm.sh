@@ -53,8 +53,11 @@ add_module() {
   for dep in $(strings -a "$ko" | sed -n 's/^depends=//p' | tr ',' ' '); do add_module "$dep"; done
   order+=("$ko")
 }
-# vivid: the kernel's virtual video driver, a camera at /dev/video0 for the V4L2 driver's test.
-for name in can can-raw can-dev vcan 9pnet_virtio 9p virtio_pci vivid; do add_module "$name"; done
+# vivid: the kernel's virtual video driver, a camera at /dev/video0 for the V4L2 driver's test;
+# virtio-gpu: QEMU's virtual GPU, a KMS device at /dev/dri/card0 for the display's.
+for name in can can-raw can-dev vcan 9pnet_virtio 9p virtio_pci vivid virtio-gpu; do
+  add_module "$name"
+done
 
 # The initramfs: busybox, the modules, and an init that runs the command.
 initrd=$work/initrd-$version.cpio
@@ -101,7 +104,7 @@ timeout 120 qemu-system-x86_64 -accel tcg -cpu max -machine pc -m 512 -smp 1 \
   -append "console=ttyS0 quiet panic=-1" \
   -fsdev local,id=hostroot,path=/,security_model=none,readonly=on,multidevs=remap \
   -device virtio-9p-pci,fsdev=hostroot,mount_tag=hostroot \
-  -device isa-debug-exit,iobase=0xf4,iosize=0x04 \
+  -device isa-debug-exit,iobase=0xf4,iosize=0x04 -device virtio-gpu-pci \
   -nographic -no-reboot -nic none
 qemu_status=$?
 set -e
