@@ -14,10 +14,26 @@ TableSchema<render::DisplaySettings> display_schema() {
   using S = render::DisplaySettings;
   TableSchema<S> t;
   t.add(field("backend", &S::backend,
-              Choice<render::DisplayBackend>{{{"offscreen", render::DisplayBackend::kOffscreen}}},
-              "Where frames go: offscreen = surfaceless EGL into an FBO (tests, headless runs)."));
-  t.add(field("width_px", &S::width_px, IntegerIn<int>{64, 7680}, "Display width in pixels."));
-  t.add(field("height_px", &S::height_px, IntegerIn<int>{64, 4320}, "Display height in pixels."));
+              Choice<render::DisplayBackend>{{{"offscreen", render::DisplayBackend::kOffscreen},
+                                              {"kms", render::DisplayBackend::kKms}}},
+              "Where frames go: offscreen = surfaceless EGL into an FBO (tests, headless runs); "
+              "kms = the dedicated display through DRM/KMS page flips (no desktop)."));
+  t.add(field("width_px", &S::width_px, IntegerIn<int>{64, 7680},
+              "Offscreen display width in pixels (a KMS display takes its mode's)."));
+  t.add(field("height_px", &S::height_px, IntegerIn<int>{64, 4320},
+              "Offscreen display height in pixels."));
+  t.add(field("kms_device", &S::kms_device, Text{true}, "kms: the DRM device."));
+  t.add(field("kms_connector", &S::kms_connector, Text{},
+              "kms: the output as the kernel names it (HDMI-A-1, DP-2, ...); empty: the first "
+              "connected one."));
+  t.add(field("kms_mode_width_px", &S::kms_mode_width_px, IntegerIn<int>{0, 16384},
+              "kms: the mode's width; 0 (with height 0): the display's preferred mode."));
+  t.add(field("kms_mode_height_px", &S::kms_mode_height_px, IntegerIn<int>{0, 16384},
+              "kms: the mode's height."));
+  t.add(field("kms_refresh_hz", &S::kms_refresh_hz, IntegerIn<int>{0, 1000},
+              "kms: the mode's refresh rate; 0: the fastest at that size."));
+  t.add(field("kms_legacy", &S::kms_legacy, Boolean{},
+              "kms: legacy modeset and page flips even where atomic commits work."));
   return t;
 }
 

@@ -22,9 +22,13 @@ namespace ultrasim::render {
 
 namespace {
 
-[[noreturn]] void fail(const std::string& what) { throw DisplayError("KMS display: " + what); }
+[[noreturn]] void fail(const std::string& what) {
+  throw DisplayError("KMS display: " + what);
+}
 
-std::string errno_text() { return std::strerror(errno); }
+std::string errno_text() {
+  return std::strerror(errno);
+}
 
 // A property's id by name on a KMS object; 0 when it has none.
 std::uint32_t property_id(int fd, std::uint32_t object, std::uint32_t type, const char* name) {
@@ -76,16 +80,16 @@ struct KmsDisplay::Impl {
 
   // Atomic property ids.
   struct {
-    std::uint32_t connector_crtc = 0, crtc_mode = 0, crtc_active = 0, plane_fb = 0,
-                  plane_crtc = 0, src_x = 0, src_y = 0, src_w = 0, src_h = 0, crtc_x = 0,
-                  crtc_y = 0, crtc_w = 0, crtc_h = 0;
+    std::uint32_t connector_crtc = 0, crtc_mode = 0, crtc_active = 0, plane_fb = 0, plane_crtc = 0,
+                  src_x = 0, src_y = 0, src_w = 0, src_h = 0, crtc_x = 0, crtc_y = 0, crtc_w = 0,
+                  crtc_h = 0;
   } prop;
 
   ~Impl() {
     // Put back what the output showed before us (the console, a splash).
     if (saved_crtc != nullptr && mode_set) {
-      drmModeSetCrtc(fd, saved_crtc->crtc_id, saved_crtc->buffer_id, saved_crtc->x,
-                     saved_crtc->y, &connector_id, 1, &saved_crtc->mode);
+      drmModeSetCrtc(fd, saved_crtc->crtc_id, saved_crtc->buffer_id, saved_crtc->x, saved_crtc->y,
+                     &connector_id, 1, &saved_crtc->mode);
     }
     if (saved_crtc != nullptr) drmModeFreeCrtc(saved_crtc);
     if (egl_display != EGL_NO_DISPLAY) {
@@ -183,10 +187,9 @@ struct KmsDisplay::Impl {
       const auto plane = [&](const char* n) {
         return property_id(fd, plane_id, DRM_MODE_OBJECT_PLANE, n);
       };
-      prop = {conn("CRTC_ID"), crtc("MODE_ID"), crtc("ACTIVE"), plane("FB_ID"),
-              plane("CRTC_ID"), plane("SRC_X"),  plane("SRC_Y"), plane("SRC_W"),
-              plane("SRC_H"),   plane("CRTC_X"), plane("CRTC_Y"), plane("CRTC_W"),
-              plane("CRTC_H")};
+      prop = {conn("CRTC_ID"), crtc("MODE_ID"), crtc("ACTIVE"), plane("FB_ID"), plane("CRTC_ID"),
+              plane("SRC_X"),  plane("SRC_Y"),  plane("SRC_W"), plane("SRC_H"), plane("CRTC_X"),
+              plane("CRTC_Y"), plane("CRTC_W"), plane("CRTC_H")};
       // Without every property the atomic path cannot run: fall back to legacy.
       if (plane_id == 0 || !prop.connector_crtc || !prop.crtc_mode || !prop.plane_fb ||
           drmModeCreatePropertyBlob(fd, &mode_info, sizeof mode_info, &mode_blob) != 0) {
@@ -200,8 +203,9 @@ struct KmsDisplay::Impl {
     if (gbm == nullptr) fail("gbm_create_device failed");
     surface = gbm_surface_create(gbm, mode.width_px, mode.height_px, GBM_FORMAT_XRGB8888,
                                  GBM_BO_USE_SCANOUT | GBM_BO_USE_RENDERING);
-    if (surface == nullptr) fail("gbm_surface_create failed (" + std::to_string(mode.width_px) +
-                                 "x" + std::to_string(mode.height_px) + ")");
+    if (surface == nullptr)
+      fail("gbm_surface_create failed (" + std::to_string(mode.width_px) + "x" +
+           std::to_string(mode.height_px) + ")");
     auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(
         eglGetProcAddress("eglGetPlatformDisplayEXT"));
     if (get_platform_display == nullptr) fail("EGL lacks eglGetPlatformDisplayEXT");
@@ -210,9 +214,19 @@ struct KmsDisplay::Impl {
       fail(std::string("eglInitialize on GBM failed: ") + detail::egl_error_name(eglGetError()));
     }
     eglBindAPI(EGL_OPENGL_ES_API);
-    const EGLint attributes[] = {EGL_SURFACE_TYPE, EGL_WINDOW_BIT, EGL_RED_SIZE, 8,
-                                 EGL_GREEN_SIZE, 8, EGL_BLUE_SIZE, 8, EGL_RENDERABLE_TYPE,
-                                 EGL_OPENGL_ES3_BIT, EGL_DEPTH_SIZE, 24, EGL_NONE};
+    const EGLint attributes[] = {EGL_SURFACE_TYPE,
+                                 EGL_WINDOW_BIT,
+                                 EGL_RED_SIZE,
+                                 8,
+                                 EGL_GREEN_SIZE,
+                                 8,
+                                 EGL_BLUE_SIZE,
+                                 8,
+                                 EGL_RENDERABLE_TYPE,
+                                 EGL_OPENGL_ES3_BIT,
+                                 EGL_DEPTH_SIZE,
+                                 24,
+                                 EGL_NONE};
     EGLint count = 0;
     eglChooseConfig(egl_display, attributes, nullptr, 0, &count);
     std::vector<EGLConfig> configs(static_cast<std::size_t>(count));
@@ -245,8 +259,8 @@ struct KmsDisplay::Impl {
     std::uint32_t pitches[4] = {gbm_bo_get_stride(bo)};
     std::uint32_t offsets[4] = {0};
     auto* id = new std::uint32_t(0);
-    if (drmModeAddFB2(fd, gbm_bo_get_width(bo), gbm_bo_get_height(bo), GBM_FORMAT_XRGB8888,
-                      handles, pitches, offsets, id, 0) != 0) {
+    if (drmModeAddFB2(fd, gbm_bo_get_width(bo), gbm_bo_get_height(bo), GBM_FORMAT_XRGB8888, handles,
+                      pitches, offsets, id, 0) != 0) {
       delete id;
       fail("drmModeAddFB2 failed: " + errno_text());
     }
@@ -316,13 +330,27 @@ KmsDisplay::KmsDisplay(const KmsOptions& options) : impl_(std::make_unique<Impl>
 
 KmsDisplay::~KmsDisplay() = default;
 
-int KmsDisplay::width_px() const { return impl_->mode.width_px; }
-int KmsDisplay::height_px() const { return impl_->mode.height_px; }
-bool KmsDisplay::atomic() const { return impl_->atomic; }
-const std::string& KmsDisplay::connector_name() const { return impl_->connector_name; }
-const KmsMode& KmsDisplay::mode() const { return impl_->mode; }
-std::int64_t KmsDisplay::flips() const { return impl_->flips.flips(); }
-std::int64_t KmsDisplay::last_flip_us() const { return impl_->last_flip_us; }
+int KmsDisplay::width_px() const {
+  return impl_->mode.width_px;
+}
+int KmsDisplay::height_px() const {
+  return impl_->mode.height_px;
+}
+bool KmsDisplay::atomic() const {
+  return impl_->atomic;
+}
+const std::string& KmsDisplay::connector_name() const {
+  return impl_->connector_name;
+}
+const KmsMode& KmsDisplay::mode() const {
+  return impl_->mode;
+}
+std::int64_t KmsDisplay::flips() const {
+  return impl_->flips.flips();
+}
+std::int64_t KmsDisplay::last_flip_us() const {
+  return impl_->last_flip_us;
+}
 
 void KmsDisplay::begin_frame() {
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -338,11 +366,12 @@ void KmsDisplay::end_frame() {
   const std::uint32_t fb = k.framebuffer(bo);
   if (!k.mode_set) {
     // The first frame sets the mode: a blocking commit, on screen when it returns.
-    const int ret = k.atomic ? k.atomic_commit(fb, DRM_MODE_ATOMIC_ALLOW_MODESET)
-                             : drmModeSetCrtc(k.fd, k.crtc_id, fb, 0, 0, &k.connector_id, 1,
-                                              &k.mode_info);
-    if (ret != 0) fail(std::string(k.atomic ? "atomic modeset" : "drmModeSetCrtc") +
-                       " failed: " + errno_text());
+    const int ret =
+        k.atomic ? k.atomic_commit(fb, DRM_MODE_ATOMIC_ALLOW_MODESET)
+                 : drmModeSetCrtc(k.fd, k.crtc_id, fb, 0, 0, &k.connector_id, 1, &k.mode_info);
+    if (ret != 0)
+      fail(std::string(k.atomic ? "atomic modeset" : "drmModeSetCrtc") +
+           " failed: " + errno_text());
     k.mode_set = true;
     k.flips.queue(reinterpret_cast<std::uintptr_t>(bo));
     k.flips.complete();
@@ -350,11 +379,12 @@ void KmsDisplay::end_frame() {
     return;
   }
   // Later frames flip at vblank; the flip's event says when the frame reached the screen.
-  const int ret =
-      k.atomic ? k.atomic_commit(fb, DRM_MODE_ATOMIC_NONBLOCK | DRM_MODE_PAGE_FLIP_EVENT)
-               : drmModePageFlip(k.fd, k.crtc_id, fb, DRM_MODE_PAGE_FLIP_EVENT, impl_.get());
-  if (ret != 0) fail(std::string(k.atomic ? "atomic page flip" : "drmModePageFlip") +
-                     " failed: " + errno_text());
+  const int ret = k.atomic
+                      ? k.atomic_commit(fb, DRM_MODE_ATOMIC_NONBLOCK | DRM_MODE_PAGE_FLIP_EVENT)
+                      : drmModePageFlip(k.fd, k.crtc_id, fb, DRM_MODE_PAGE_FLIP_EVENT, impl_.get());
+  if (ret != 0)
+    fail(std::string(k.atomic ? "atomic page flip" : "drmModePageFlip") +
+         " failed: " + errno_text());
   k.flips.queue(reinterpret_cast<std::uintptr_t>(bo));
   k.wait_for_flip();
   // The buffer the flip replaced may be drawn into again.
@@ -374,8 +404,7 @@ void KmsDisplay::read_pixels_into(RgbaImage& out) {
   void* map_data = nullptr;
   auto* pixels = static_cast<const std::uint8_t*>(
       gbm_bo_map(k.on_screen, 0, 0, static_cast<std::uint32_t>(out.width),
-                 static_cast<std::uint32_t>(out.height), GBM_BO_TRANSFER_READ, &stride,
-                 &map_data));
+                 static_cast<std::uint32_t>(out.height), GBM_BO_TRANSFER_READ, &stride, &map_data));
   if (pixels == nullptr) fail("gbm_bo_map of the buffer on screen failed");
   for (int y = 0; y < out.height; ++y) {
     for (int x = 0; x < out.width; ++x) {

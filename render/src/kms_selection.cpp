@@ -32,10 +32,10 @@ KmsChoice choose_kms_output(const std::vector<KmsConnector>& connectors,
     if (named ? connectors[i].name == request.connector : connectors[i].connected) index = i;
   }
   if (index == connectors.size()) {
-    throw std::runtime_error(
-        (request.connector.empty() ? std::string("no connected display")
-                                   : "connector " + request.connector + " not found") +
-        "; outputs: " + describe_outputs(connectors));
+    throw std::runtime_error((request.connector.empty()
+                                  ? std::string("no connected display")
+                                  : "connector " + request.connector + " not found") +
+                             "; outputs: " + describe_outputs(connectors));
   }
   const KmsConnector& c = connectors[index];
   if (!c.connected) throw std::runtime_error("connector " + c.name + " has no display connected");
@@ -72,10 +72,9 @@ KmsChoice choose_kms_output(const std::vector<KmsConnector>& connectors,
       if (!offered.empty()) offered += ", ";
       offered += describe_mode(m.width_px, m.height_px, m.refresh_hz);
     }
-    throw std::runtime_error("mode " +
-                             describe_mode(request.width_px, request.height_px,
-                                           request.refresh_hz) +
-                             " not offered by " + c.name + "; offered: " + offered);
+    throw std::runtime_error(
+        "mode " + describe_mode(request.width_px, request.height_px, request.refresh_hz) +
+        " not offered by " + c.name + "; offered: " + offered);
   }
   return {index, *best};
 }

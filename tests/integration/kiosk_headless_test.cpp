@@ -266,3 +266,51 @@ TEST(KioskBadInput, AnUnknownScriptListsTheAvailableOnes) {
 }
 
 }  // namespace
+
+namespace {
+
+// [display] backend = "kms" where there is no such device: one line naming it, a failed exit,
+// nothing half-written.
+TEST(KioskDisplay, AMissingKmsDeviceIsAClearError) {
+  const fs::path dir = fs::temp_directory_path() / ("ultrasim-kms-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "app.toml")
+      << "[display]\nbackend = \"kms\"\nkms_device = \"/dev/dri/ultrasim-none\"\n";
+  const std::string command = std::string(ULTRASIM_KIOSK_EXE) + " --headless --case " +
+                              ULTRASIM_DEFAULT_CASE + " --config " + (dir / "app.toml").string() +
+                              " --out " + (dir / "out").string() + " > " + (dir / "log").string() +
+                              " 2>&1";
+  const int status = std::system(command.c_str());
+  const std::string log = read_text(dir / "log");
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("KMS display: cannot open /dev/dri/ultrasim-none"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "out" / "report.json"));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+
+namespace {
+
+// The kiosk itself (no --headless): the configured display and probe in real time until a
+// signal; it then finishes the frame, restores the display and writes its report.
+TEST(KioskMode, RunsInRealTimeUntilASignal) {
+  const fs::path dir = fs::temp_directory_path() / ("ultrasim-kiosk-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string command = "timeout -s INT 3 " + std::string(ULTRASIM_KIOSK_EXE) + " --case " +
+                              ULTRASIM_DEFAULT_CASE + " --out " + dir.string() + " > " +
+                              dir.string() + ".log 2>&1";
+  std::system(command.c_str());  // timeout's status says it sent the signal (124)
+  const std::string json = read_text(dir / "report.json");
+  ASSERT_FALSE(json.empty()) << read_text(dir.string() + ".log");
+  // About 60 frames a second once the case is loaded; none written as screenshots.
+  const double frames = json_number(json, "frames");
+  EXPECT_GT(frames, 30);
+  EXPECT_LT(frames, 3 * 60 + 5);
+  EXPECT_FALSE(fs::exists(dir / "screen-rest.png"));
+  fs::remove_all(dir);
+  fs::remove(dir.string() + ".log");
+}
+
+}  // namespace

@@ -2,9 +2,8 @@
 // with one virtual output. Frames are drawn with GLES through GBM and EGL, shown by page flips,
 // and read back from the buffer on screen; atomic commits and the legacy path both.
 
-#include <gtest/gtest.h>
-
 #include <GLES3/gl3.h>
+#include <gtest/gtest.h>
 
 #include "ultrasim/render/display_error.hpp"
 #include "ultrasim/render/kms_display.hpp"
@@ -41,8 +40,12 @@ void run_frames(bool force_legacy) {
   EXPECT_EQ(p[2], 0);
 }
 
-TEST(KmsDisplayVm, AtomicCommitsShowFramesAtVblank) { run_frames(false); }
-TEST(KmsDisplayVm, TheLegacyPathShowsThemToo) { run_frames(true); }
+TEST(KmsDisplayVm, AtomicCommitsShowFramesAtVblank) {
+  run_frames(false);
+}
+TEST(KmsDisplayVm, TheLegacyPathShowsThemToo) {
+  run_frames(true);
+}
 
 TEST(KmsDisplayVm, AMissingConnectorIsNamedWithTheOutputsThereAre) {
   KmsOptions options;

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -18,6 +19,7 @@
 #include "ultrasim/kiosk/session.hpp"
 #include "ultrasim/kiosk/soak_script.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
+#include "ultrasim/render/kms_display.hpp"
 #include "ultrasim/render/offscreen_display.hpp"
 #include "ultrasim/render/png_writer.hpp"
 #include "ultrasim/render/scene_renderer.hpp"
@@ -72,10 +74,10 @@ Script compare_methods(const config::CaseScan& scan) {
   return script;
 }
 
-// The offscreen screen as the frame loop's renderer.
-class OffscreenFrameRenderer final : public FrameRenderer {
+// The screen as the frame loop's renderer.
+class DisplayFrameRenderer final : public FrameRenderer {
  public:
-  OffscreenFrameRenderer(render::OffscreenDisplay& display, render::SceneRenderer& renderer)
+  DisplayFrameRenderer(render::Display& display, render::SceneRenderer& renderer)
       : display_(display), renderer_(renderer) {}
   void render(const Session& session, std::int64_t frame_index) override {
     display_.begin_frame();
@@ -84,7 +86,7 @@ class OffscreenFrameRenderer final : public FrameRenderer {
   }
 
  private:
-  render::OffscreenDisplay& display_;
+  render::Display& display_;
   render::SceneRenderer& renderer_;
 };
 
@@ -99,6 +101,26 @@ bool same_trouble(std::string_view a, std::string_view b) {
     if (i == a.size() || j == b.size()) return i == a.size() && j == b.size();
     if (a[i++] != b[j++]) return false;
   }
+}
+
+// The display [display] backend names; `name` says which, for the report.
+std::unique_ptr<render::Display> make_display(const render::DisplaySettings& settings,
+                                              std::string& name) {
+  if (settings.backend == render::DisplayBackend::kKms) {
+    render::KmsOptions options;
+    options.device = settings.kms_device;
+    options.output = {settings.kms_connector, settings.kms_mode_width_px,
+                      settings.kms_mode_height_px, settings.kms_refresh_hz};
+    options.force_legacy = settings.kms_legacy;
+    auto kms = std::make_unique<render::KmsDisplay>(options);
+    name = "KMS " + kms->connector_name() + " " + std::to_string(kms->width_px()) + "x" +
+           std::to_string(kms->height_px()) + "@" + std::to_string(kms->mode().refresh_hz) +
+           (kms->atomic() ? " (atomic)" : " (legacy)");
+    return kms;
+  }
+  auto offscreen = std::make_unique<render::OffscreenDisplay>(settings);
+  name = offscreen->renderer_name();
+  return offscreen;
 }
 
 // The kiosk's default for a case: the first live method that runs on it.
@@ -150,8 +172,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   const bool scripted = settings.probe.source == hal::ProbeSourceKind::kScripted;
   const hal::TimestampUs script_duration_us = script.keyframes.back().time_us;
   ProbeSource probe = make_probe_source(settings.probe, script.keyframes, script_clock, clock);
+  // The kiosk runs everything in real time: the script and recordings follow the wall clock.
+  const bool real_time = probe.real_time || options.kiosk;
   std::vector<std::pair<hal::TimestampUs, std::string>> markers;
-  if (scripted) {
+  if (options.kiosk) {
+    script.controls.clear();  // the trainee's controls, not a script's
+  } else if (scripted) {
     for (const auto& k : script.keyframes)
       if (!k.marker.empty()) markers.emplace_back(k.time_us, k.marker);
   } else {
@@ -163,9 +189,16 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     markers.emplace_back(static_cast<hal::TimestampUs>(options.probe_seconds * 1e6), "probe-end");
   }
   const hal::TimestampUs run_duration_us =
-      scripted ? script_duration_us : static_cast<hal::TimestampUs>(options.probe_seconds * 1e6);
+      options.kiosk ? (options.kiosk_seconds > 0.0
+                           ? static_cast<hal::TimestampUs>(options.kiosk_seconds * 1e6)
+                           : std::numeric_limits<hal::TimestampUs>::max() / 4)
+      : scripted    ? script_duration_us
+                    : static_cast<hal::TimestampUs>(options.probe_seconds * 1e6);
 
-  render::OffscreenDisplay display(settings.display);
+  std::string display_name;
+  const std::unique_ptr<render::Display> display_owner =
+      make_display(settings.display, display_name);
+  render::Display& display = *display_owner;
   render::SceneRenderer renderer(display);
   std::filesystem::create_directories(options.out_dir);  // only once everything could start
   // Restarted on every pick from the case list.
@@ -174,7 +207,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
 
   RunReport report;
   report.case_name = tissue.settings.name;
-  report.renderer = display.renderer_name();
+  report.renderer = display_name;
   report.mesh_nodes = tissue.mesh.node_count();
   report.mesh_tets = tissue.mesh.tet_count();
   report.bscan_width_px = session->bscan_width_px();
@@ -186,7 +219,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.slicer = session->slicer_name();
   report.probe_source = probe_source_key(settings.probe.source);
   const std::int64_t budget_us = settings.frame.budget_us;
-  OffscreenFrameRenderer frame_renderer(display, renderer);
+  DisplayFrameRenderer frame_renderer(display, renderer);
   FrameLoop loop(*session, frame_renderer, clock, settings.frame);
 
   std::size_t next_marker = 0;
@@ -203,7 +236,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   const std::int64_t frame_count = run_duration_us / budget_us + 2;
   const hal::TimestampUs real_start_us = clock.now_us();
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
-    if (probe.real_time) {
+    if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed)) break;
+    if (real_time) {
       // A device moves in real time: each frame starts on its budget's boundary.
       const hal::TimestampUs due = real_start_us + frame * budget_us;
       const hal::TimestampUs wait_us = due - clock.now_us();
@@ -248,7 +282,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     const std::string method_key(sim::engine_key(session->method()));
     // A device's samples carry the monotonic clock's time; the script's and recordings' the
     // virtual clock's.
-    const hal::TimestampUs source_now = probe.real_time ? clock.now_us() : now;
+    const hal::TimestampUs source_now = probe.real_time ? clock.now_us() : now;  // its clock
     const auto sample = probe.pose->latest(source_now);
     const std::string_view probe_status = probe.pose->status_text();
     if (options.log_line && !same_trouble(probe_status, session->probe_status())) {
@@ -310,7 +344,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       report.snapshots.push_back(snap);
       ++next_marker;
     }
-    if (!probe.real_time) script_clock.advance_us(budget_us);
+    if (!real_time) script_clock.advance_us(budget_us);
   }
 
   report.frame = loop.scheduler().frame_stats();

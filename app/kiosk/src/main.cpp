@@ -1,6 +1,8 @@
 // ultrasim-kiosk: the composition root. The only place that picks drivers and back ends.
 
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -18,16 +20,32 @@
 #define ULTRASIM_DEFAULT_CASE_DIR "cases/default"
 #endif
 
+namespace {
+
+// Set by SIGINT/SIGTERM: the kiosk finishes its frame, restores the display and exits.
+std::atomic<bool> g_stop{false};
+void request_stop(int) {
+  g_stop.store(true);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App app{"ultrasim kiosk: interactive ultrasound training with soft-tissue deformation"};
   ultrasim::kiosk::HeadlessRunOptions options;
   options.case_dir = ULTRASIM_DEFAULT_CASE_DIR;
   options.out_dir = "out/run";
   bool headless = false;
+  double kiosk_seconds = 0.0;
   std::string config_path;
   int threads = 2;
   app.add_flag("--headless", headless,
-               "run without a display: a scripted probe, PNG screenshots and a report");
+               "a test run: the script (or [probe] source) on a virtual clock, PNG screenshots "
+               "and a report; without it, the kiosk: [display] and [probe] in real time until "
+               "SIGINT/SIGTERM");
+  app.add_option("--kiosk-seconds", kiosk_seconds,
+                 "the kiosk (no --headless): stop after this many seconds (0: run until a signal)")
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("--case", options.case_dir, "case folder (holding case.toml)")
       ->capture_default_str();
   app.add_option("--config", config_path, "app settings (TOML); defaults when omitted");
@@ -113,9 +131,12 @@ int main(int argc, char** argv) {
   }
 
   if (!headless) {
-    std::cerr << "ultrasim-kiosk: only --headless is available yet (the DRM/KMS display back end "
-                 "comes with the kiosk issue)\n";
-    return 2;
+    // The kiosk itself: the configured display and probe, in real time, until a signal.
+    options.kiosk = true;
+    options.kiosk_seconds = kiosk_seconds;
+    options.stop = &g_stop;
+    std::signal(SIGINT, request_stop);
+    std::signal(SIGTERM, request_stop);
   }
   if (!config_path.empty()) options.app_config = config_path;
   if (app.count("--method") > 0) {

@@ -22,6 +22,12 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.display.backend, b.display.backend);
   EXPECT_EQ(a.display.width_px, b.display.width_px);
   EXPECT_EQ(a.display.height_px, b.display.height_px);
+  EXPECT_EQ(a.display.kms_device, b.display.kms_device);
+  EXPECT_EQ(a.display.kms_connector, b.display.kms_connector);
+  EXPECT_EQ(a.display.kms_mode_width_px, b.display.kms_mode_width_px);
+  EXPECT_EQ(a.display.kms_mode_height_px, b.display.kms_mode_height_px);
+  EXPECT_EQ(a.display.kms_refresh_hz, b.display.kms_refresh_hz);
+  EXPECT_EQ(a.display.kms_legacy, b.display.kms_legacy);
   EXPECT_EQ(a.bscan.slicer, b.bscan.slicer);
   EXPECT_EQ(a.bscan.width_px, b.bscan.width_px);
   EXPECT_EQ(a.bscan.height_px, b.bscan.height_px);
@@ -115,6 +121,13 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   AppSettings changed;
   changed.display.width_px = 1920;
   changed.display.height_px = 1080;
+  changed.display.backend = render::DisplayBackend::kKms;
+  changed.display.kms_device = "/dev/dri/card1";
+  changed.display.kms_connector = "HDMI-A-1";
+  changed.display.kms_mode_width_px = 1920;
+  changed.display.kms_mode_height_px = 1080;
+  changed.display.kms_refresh_hz = 60;
+  changed.display.kms_legacy = true;
   changed.bscan.slicer = imaging::SlicerMethod::kPublished;
   changed.bscan.width_px = 300;
   changed.bscan.height_px = 200;
@@ -296,7 +309,7 @@ TEST(AppSettings, BadEnumStringListsAllowedValues) {
       error_of([] { (void)parse_app_settings("[display]\nbackend = \"vulkan\"\n", "app.toml"); });
   EXPECT_EQ(caught.message,
             "app.toml:2:11: display.backend: unknown value \"vulkan\"; allowed: one of "
-            "\"offscreen\"");
+            "\"offscreen\", \"kms\"");
 }
 
 TEST(AppSettings, SyntaxErrorHasLineAndColumn) {

@@ -40,8 +40,7 @@ struct KmsChoice {
 // Chooses the output and its mode. Throws std::runtime_error with a line naming what was asked
 // and what there is ("connector HDMI-A-2 not found; outputs: HDMI-A-1 (connected), DP-1") when
 // nothing fits.
-KmsChoice choose_kms_output(const std::vector<KmsConnector>& connectors,
-                            const KmsRequest& request);
+KmsChoice choose_kms_output(const std::vector<KmsConnector>& connectors, const KmsRequest& request);
 
 // The buffers a page-flipped display cycles through, as the kernel holds them: the one on
 // screen, and at most one flip queued. A buffer may be drawn into again only once the flip that

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -33,6 +34,12 @@ struct HeadlessRunOptions {
   // The process's resident memory in KiB (an OS query the composition root injects), sampled
   // once a second of the script into report.json; unset: not sampled.
   std::function<std::int64_t()> resident_memory_kib;
+  // The kiosk itself rather than a test run: every source moves in real time, frames are paced
+  // by the display (a KMS display's vblank; the budget offscreen), no screenshots are taken, and
+  // the run lasts until *stop turns true (a signal) or, when kiosk_seconds > 0, that long.
+  bool kiosk = false;
+  double kiosk_seconds = 0.0;
+  const std::atomic<bool>* stop = nullptr;
   // Where the run says what happens to the probe's source (a line when its trouble starts,
   // changes or clears, with the run's time); unset: nowhere.
   std::function<void(const std::string&)> log_line;
