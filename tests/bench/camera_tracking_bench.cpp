@@ -33,7 +33,7 @@ const hal::MarkerBody& body() {
 // The sweep rendered once, played forward then back (so the motion never jumps).
 const std::vector<hal::CameraFrame>& frames() {
   static const std::vector<hal::CameraFrame> all = [] {
-    render::OffscreenDisplay display({render::DisplayBackend::kOffscreen, 640, 480}, {4});
+    render::OffscreenDisplay display(render::offscreen_display_settings(640, 480), {4});
     render::CameraViewRenderer renderer(
         test::marker_body_mesh(body(), tracking::dodecahedron_faces(kEdgeMm)));
     std::vector<hal::CameraFrame> out;

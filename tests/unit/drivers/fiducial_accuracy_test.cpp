@@ -75,7 +75,7 @@ double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
 Outcome measure(const hal::MarkerBody& body, const std::vector<std::vector<Eigen::Vector3d>>& faces,
                 const std::vector<View>& views, const char* png_prefix) {
   const hal::CameraIntrinsics camera = test::test_camera();
-  render::OffscreenDisplay display({render::DisplayBackend::kOffscreen, 640, 480}, {4});
+  render::OffscreenDisplay display(render::offscreen_display_settings(640, 480), {4});
   render::CameraViewRenderer renderer(test::marker_body_mesh(body, faces));
   // Per view, for the accuracy chart (scripts/plot_fiducial_accuracy.py).
   const auto dir = std::filesystem::path(ULTRASIM_BINARY_DIR) / "fiducial_views";
@@ -195,7 +195,7 @@ TEST(FiducialAccuracy, TracksASweepThroughEveryOrientation) {
   const hal::CameraIntrinsics camera = test::test_camera();
   const auto body =
       tracking::dodecahedron_marker_body(kEdgeMm, tracking::largest_marker_side_mm(kEdgeMm));
-  render::OffscreenDisplay display({render::DisplayBackend::kOffscreen, 640, 480}, {4});
+  render::OffscreenDisplay display(render::offscreen_display_settings(640, 480), {4});
   render::CameraViewRenderer renderer(
       test::marker_body_mesh(body, tracking::dodecahedron_faces(kEdgeMm)));
   CameraTrackerSettings settings;
@@ -245,7 +245,7 @@ TEST(FiducialAccuracy, AStillProbeDoesNotJitter) {
   const hal::CameraIntrinsics camera = test::test_camera();
   const auto body =
       tracking::dodecahedron_marker_body(kEdgeMm, tracking::largest_marker_side_mm(kEdgeMm));
-  render::OffscreenDisplay display({render::DisplayBackend::kOffscreen, 640, 480}, {4});
+  render::OffscreenDisplay display(render::offscreen_display_settings(640, 480), {4});
   render::CameraViewRenderer renderer(
       test::marker_body_mesh(body, tracking::dodecahedron_faces(kEdgeMm)));
   const Eigen::Isometry3d pose = Eigen::Translation3d(10.0, -5.0, 400.0) *

@@ -35,7 +35,7 @@ constexpr std::array<float, 3> kBoxHiMm{28.0f, 38.0f, 34.0f};
 class SurfaceRendering : public ::testing::Test {
  protected:
   SurfaceRendering()
-      : display_(DisplaySettings{DisplayBackend::kOffscreen, kWidthPx, kHeightPx}),
+      : display_(offscreen_display_settings(kWidthPx, kHeightPx)),
         renderer_(std::make_unique<SceneRenderer>(display_)),
         scene_(testing::make_synthetic_scene()) {}
 

@@ -46,7 +46,7 @@ int run(const std::filesystem::path& case_dir, const std::string& config_path,
 
   std::filesystem::create_directories(out_dir);
   render::OffscreenDisplay display(
-      {render::DisplayBackend::kOffscreen, p.camera_width_px, p.camera_height_px}, {4});
+      render::offscreen_display_settings(p.camera_width_px, p.camera_height_px), {4});
   render::CameraViewRenderer renderer(
       tools::marker_body_mesh(body, tracking::dodecahedron_faces(edge)));
   const auto period_us = static_cast<hal::TimestampUs>(1e6 / p.camera_fps);

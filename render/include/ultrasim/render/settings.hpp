@@ -24,4 +24,12 @@ struct DisplaySettings {
   bool kms_legacy = false;
 };
 
+// An offscreen display of the given size (tests, tools, screenshots).
+inline DisplaySettings offscreen_display_settings(int width_px, int height_px) {
+  DisplaySettings s;
+  s.width_px = width_px;
+  s.height_px = height_px;
+  return s;
+}
+
 }  // namespace ultrasim::render
