@@ -2,6 +2,7 @@
 
 #include <GLES3/gl3.h>
 
+#include <cctype>
 #include <cmath>
 
 #include "bitmap_font.hpp"
@@ -72,6 +73,43 @@ void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState 
       right - 6.0f * s) {
     over.text(x, text_y, s, kSubtitle, theme::kTextSecondary);
   }
+}
+
+// The stats overlay, right-aligned at the top of the 3D view: one short line each.
+void add_stats(const ScreenLayout& layout, const StatsView& stats, ColorBatch& over) {
+  if (!stats.shown) return;
+  const auto s = static_cast<float>(layout.ui_scale);
+  const PixelRect& r = layout.view_3d;
+  const float right = static_cast<float>(r.x_px + r.width_px) - 6.0f * s;
+  float y = static_cast<float>(r.y_px) + 6.0f * s;
+  const auto line = [&](const detail::TextBuffer& text, Rgba8 colour) {
+    const float width = static_cast<float>(detail::text_width_dots(text.view())) * s;
+    over.text(right - width, y, s, text.view(), colour);
+    y += 10.0f * s;
+  };
+  detail::TextBuffer t;
+  t.append_fixed(stats.frames_per_second, 0).append(" FPS");
+  line(t, theme::kTextPrimary);
+  t = {};
+  t.append("FRAME P99 ").append_fixed(stats.frame_p99_ms, 1).append(" MS");
+  line(t, theme::kTextSecondary);
+  t = {};
+  t.append("BUDGET ").append_fixed(stats.budget_use_percent, 0).append(" %");
+  line(t, stats.budget_use_percent > 100.0f ? theme::kWarning : theme::kTextSecondary);
+  t = {};
+  t.append("MISSED ").append_int(stats.deadline_misses);
+  line(t, theme::kTextSecondary);
+  t = {};
+  t.append("TO PHOTON P99 ").append_fixed(stats.probe_to_photon_p99_ms, 1).append(" MS");
+  line(t, stats.probe_to_photon_p99_ms > 33.3f ? theme::kWarning : theme::kTextSecondary);
+  t = {};
+  t.append("PROBE ");
+  for (char c : stats.probe_source) {
+    const char upper = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    t.append(std::string_view(&upper, 1));
+  }
+  t.append(stats.probe_ok ? " OK" : " LOST");
+  line(t, stats.probe_ok ? theme::kAccent : theme::kWarning);
 }
 
 void add_view_panel(const ScreenLayout& layout, ColorBatch& over) {
@@ -160,6 +198,7 @@ void SceneRenderer::draw(const FrameInput& frame) {
   add_header(layout, frame, state, im.over);
   add_view_panel(layout, im.over);
   im.tissue.add_overlay(layout, im.over);
+  add_stats(layout, frame.stats, im.over);
   detail::add_bscan_overlay(frame, layout, state, image_depth_mm, im.over);
 
   const detail::Mat4 pixels_to_clip =

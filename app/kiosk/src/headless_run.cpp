@@ -81,9 +81,12 @@ class DisplayFrameRenderer final : public FrameRenderer {
       : display_(display), renderer_(renderer) {}
   void render(const Session& session, std::int64_t frame_index) override {
     display_.begin_frame();
-    renderer_.draw(session.frame_input(frame_index));
+    render::FrameInput input = session.frame_input(frame_index);
+    input.stats = stats;
+    renderer_.draw(input);
     display_.end_frame();
   }
+  render::StatsView stats;  // the overlay, refreshed by the run before each frame
 
  private:
   render::Display& display_;
@@ -235,6 +238,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   // One frame past the script's end, so its last moment is shown too.
   const std::int64_t frame_count = run_duration_us / budget_us + 2;
   const hal::TimestampUs real_start_us = clock.now_us();
+  hal::TimestampUs last_frame_start_us = -1;
+  double measured_fps = 0.0;  // frame starts a second, smoothed
   for (std::int64_t frame = 0; frame < frame_count; ++frame) {
     if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed)) break;
     if (real_time) {
@@ -295,6 +300,27 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     if (!probe_status.empty()) {
       report.probe_status_frames += 1;
       if (report.probe_last_status != probe_status) report.probe_last_status = probe_status;
+    }
+    // The overlay: how the kiosk keeps up, as of the frames before this one.
+    {
+      const hal::TimestampUs frame_start_us = clock.now_us();
+      if (last_frame_start_us >= 0 && frame_start_us > last_frame_start_us) {
+        const double fps = 1e6 / static_cast<double>(frame_start_us - last_frame_start_us);
+        measured_fps = measured_fps > 0.0 ? 0.9 * measured_fps + 0.1 * fps : fps;
+      }
+      last_frame_start_us = frame_start_us;
+      const sched::FrameTimeStats& frames = loop.scheduler().frame_stats();
+      render::StatsView& stats = frame_renderer.stats;
+      stats.shown = true;
+      stats.frames_per_second = static_cast<float>(measured_fps);
+      stats.frame_p99_ms = static_cast<float>(frames.percentile_us(99.0)) * 1e-3f;
+      stats.budget_use_percent =
+          100.0f * static_cast<float>(frames.percentile_us(50.0)) / static_cast<float>(budget_us);
+      stats.deadline_misses = frames.deadline_misses();
+      stats.probe_to_photon_p99_ms =
+          static_cast<float>(loop.probe_to_photon().percentile_us(99.0)) * 1e-3f;
+      stats.probe_source = probe.pose->name();
+      stats.probe_ok = probe_status.empty();
     }
     const sched::TickReport tick =
         loop.run_frame(sample, sample ? source_now - sample->timestamp_us : 0);

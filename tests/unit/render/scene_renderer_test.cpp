@@ -155,6 +155,31 @@ TEST_F(SceneRendererTest, FrozenImageIsTagged) {
   EXPECT_GT(count(draw(frame_), strip, is_amber), 30);
 }
 
+// The probe source's trouble along the B-scan panel's foot, in the warning colour.
+TEST_F(SceneRendererTest, TheProbeSourcesTroubleIsShownOnThePanel) {
+  draw(frame_);  // lays the screen out
+  const PixelRect& panel = renderer_.layout().bscan_panel;
+  const PixelRect foot{panel.x_px, panel.y_px + panel.height_px - 16, panel.width_px, 16};
+  EXPECT_EQ(count(draw(frame_), foot, is_red), 0);
+  frame_.probe_status = "camera: no markers in view";
+  EXPECT_GT(count(draw(frame_), foot, is_red), 40);
+}
+
+// The stats overlay, top right of the 3D view, only when asked for; a lost probe in red.
+TEST_F(SceneRendererTest, TheStatsOverlayShowsWhenAskedFor) {
+  draw(frame_);
+  const PixelRect& view = renderer_.layout().view_3d;
+  const PixelRect corner{view.x_px + view.width_px / 2, view.y_px + 2, view.width_px / 2 - 2, 70};
+  const auto text = [](const std::uint8_t* p) { return p[0] > 120 && p[1] > 120 && p[2] > 120; };
+  const int before = count(draw(frame_), corner, text);
+  frame_.stats = {true, 60.0f, 14.5f, 55.0f, 3, 16.5f, "can0", true};
+  const int with_stats = count(draw(frame_), corner, text);
+  EXPECT_GT(with_stats, before + 100);
+  EXPECT_EQ(count(draw(frame_), corner, is_red), 0);
+  frame_.stats.probe_ok = false;
+  EXPECT_GT(count(draw(frame_), corner, is_red), 20);
+}
+
 TEST_F(SceneRendererTest, BadMeshAndPoseAreSkippedNotDrawn) {
   std::vector<std::uint32_t> bad = scene_.lines;
   bad.back() = 1'000'000;  // past the last node

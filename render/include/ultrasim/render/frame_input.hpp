@@ -47,6 +47,19 @@ struct ProbeView {
   float collider_radius_mm = 0.0f;  // 0: do not draw the collider
 };
 
+// The stats overlay (top right of the 3D view): how the kiosk keeps up, for the trainer and the
+// service engineer. Not drawn unless `shown`.
+struct StatsView {
+  bool shown = false;
+  float frames_per_second = 0.0f;
+  float frame_p99_ms = 0.0f;
+  float budget_use_percent = 0.0f;  // frame time p50 over the frame budget
+  std::int64_t deadline_misses = 0;
+  float probe_to_photon_p99_ms = 0.0f;
+  std::string_view probe_source;  // "can0", "camera /dev/video0", ...
+  bool probe_ok = true;           // the source has nothing to say (FrameInput::probe_status)
+};
+
 struct FrameInput {
   BscanView bscan;
   MeshView mesh;
@@ -58,6 +71,7 @@ struct FrameInput {
   // Why the probe's pose is not fresh ("camera: no markers in view"), shown as a warning on the
   // B-scan panel; empty while the tracker is well.
   std::string_view probe_status;
+  StatsView stats;
 };
 
 }  // namespace ultrasim::render
