@@ -68,8 +68,10 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
              static_cast<std::uint8_t>(settings.bscan.background_grey)),
       node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
       node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f),
-      structures_(tissue.structures) {
+      structures_(tissue.structures),
+      skin_(tissue) {
   probe_status_.reserve(160);
+  surface_views_.reserve(tissue.structures.size() + 1);
   switch_method(settings.sim.method);
   rebuild_image_pipeline();
   update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
@@ -284,6 +286,13 @@ void Session::update_view() {
         static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
   }
   structures_.update(deformed, jobs_);
+  // The skin over the tissue and around it, struck by the probe (it is the view's: it moves
+  // when the view is refreshed, a frame's time each).
+  const std::optional<sim::ProbeCollider> collider = probe_collider();
+  skin_.step(deformed, collider ? &*collider : nullptr,
+             static_cast<double>(settings_.frame.budget_us) * 1e-6);
+  surface_views_.assign(structures_.views().begin(), structures_.views().end());
+  surface_views_.push_back(skin_.view());
 }
 
 void Session::slice_in_parallel(const imaging::ProbePose& probe) {
@@ -328,7 +337,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.mesh.node_positions_mm = node_positions_;
   frame.mesh.line_indices = tissue_.surface_lines;
   frame.mesh.node_displacement_mm = node_displacement_;
-  frame.surfaces = structures_.views();
+  frame.surfaces = surface_views_;
 
   // A convex face is the chord of its arc, not the sector's width at depth.
   const double face_width_mm =

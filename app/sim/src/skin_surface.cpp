@@ -15,8 +15,9 @@ SkinSurface::SkinSurface(const Eigen::Vector2d& footprint_min_mm,
       !(settings.edge_stiffness_n_per_mm > 0.0) || !(settings.anchor_stiffness_n_per_mm >= 0.0) ||
       !(settings.damping_per_s >= 0.0) || !(settings.node_mass_g > 0.0) ||
       settings.substeps_per_frame < 1) {
-    throw std::invalid_argument("skin: spacing, stiffness and mass must be > 0, margin, anchor "
-                                "stiffness and damping >= 0, substeps >= 1");
+    throw std::invalid_argument(
+        "skin: spacing, stiffness and mass must be > 0, margin, anchor "
+        "stiffness and damping >= 0, substeps >= 1");
   }
   if (!(footprint_max_mm.array() > footprint_min_mm.array()).all()) {
     throw std::invalid_argument("skin: the tissue's footprint is empty");
@@ -32,17 +33,19 @@ SkinSurface::SkinSurface(const Eigen::Vector2d& footprint_min_mm,
                               skin_z_mm);
       rest_.push_back(p);
       // Over the tissue (its boundary included): taken from the tissue's surface.
-      const bool over = p.x() >= footprint_min_mm.x() - 1e-9 &&
-                        p.x() <= footprint_max_mm.x() + 1e-9 &&
-                        p.y() >= footprint_min_mm.y() - 1e-9 && p.y() <= footprint_max_mm.y() + 1e-9;
+      const bool over =
+          p.x() >= footprint_min_mm.x() - 1e-9 && p.x() <= footprint_max_mm.x() + 1e-9 &&
+          p.y() >= footprint_min_mm.y() - 1e-9 && p.y() <= footprint_max_mm.y() + 1e-9;
       is_driven_.push_back(over);
       if (over) driven_.push_back(at(i, j));
     }
   }
   for (int j = 0; j + 1 < ny; ++j) {
     for (int i = 0; i + 1 < nx; ++i) {
-      const auto a = static_cast<std::uint32_t>(at(i, j)), b = static_cast<std::uint32_t>(at(i + 1, j));
-      const auto c = static_cast<std::uint32_t>(at(i + 1, j + 1)), d = static_cast<std::uint32_t>(at(i, j + 1));
+      const auto a = static_cast<std::uint32_t>(at(i, j)),
+                 b = static_cast<std::uint32_t>(at(i + 1, j));
+      const auto c = static_cast<std::uint32_t>(at(i + 1, j + 1)),
+                 d = static_cast<std::uint32_t>(at(i, j + 1));
       // Seen from −z (outside, above the skin) with x right and y down the page: a, d, c and
       // a, c, b run counter-clockwise.
       triangles_.insert(triangles_.end(), {a, d, c, a, c, b});
@@ -66,7 +69,7 @@ SkinSurface::SkinSurface(const Eigen::Vector2d& footprint_min_mm,
   force_.assign(rest_.size(), Eigen::Vector3d::Zero());
 }
 
-bool SkinSurface::step(const ProbeCollider& probe,
+bool SkinSurface::step(const ProbeCollider* probe,
                        std::span<const Eigen::Vector3d> driven_positions_mm, double dt_s) {
   if (driven_positions_mm.size() != driven_.size() || !(dt_s > 0.0)) return false;
   for (const auto& p : driven_positions_mm) {
@@ -102,11 +105,13 @@ bool SkinSurface::step(const ProbeCollider& probe,
       position_[n] += h * velocity_[n];
       // The probe cannot be entered: a node inside it goes down the beam to the face (the skin
       // is pressed, not pushed sideways), or where that is not out, to the nearest surface.
-      if (probe.signed_distance_mm(position_[n]) < 0.0) {
-        const Eigen::Vector3d beam = probe.beam_axis();
-        const double to_face = (probe.face_center_mm() - position_[n]).dot(beam);
+      if (probe != nullptr && probe->signed_distance_mm(position_[n]) < 0.0) {
+        const Eigen::Vector3d beam = probe->beam_axis();
+        const double to_face = (probe->face_center_mm() - position_[n]).dot(beam);
         Eigen::Vector3d out = position_[n] + std::max(to_face, 0.0) * beam;
-        if (probe.signed_distance_mm(out) < -1e-6) out = probe.closest_surface_point(out).point_mm;
+        if (probe->signed_distance_mm(out) < -1e-6) {
+          out = probe->closest_surface_point(out).point_mm;
+        }
         position_[n] = out;
         velocity_[n].setZero();
       }

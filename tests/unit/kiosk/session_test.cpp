@@ -45,7 +45,7 @@ TEST_F(SessionTest, TheVeinSurfaceFollowsTheCompressedTissue) {
   Session session(tissue_, settings_, clock_, jobs_);
   session.update(pose_at(-3.0));  // lifted: the surface sits where it was extracted
   const auto at_rest = session.frame_input(0).surfaces;
-  ASSERT_EQ(at_rest.size(), 1u);
+  ASSERT_EQ(at_rest.size(), 2u);  // the vein, then the skin
   const std::vector<float> rest(at_rest[0].positions_mm.begin(), at_rest[0].positions_mm.end());
   for (std::size_t v = 0; v < rest.size(); v += 3) {
     const auto& p = tissue_.structures[0].rest.vertices_mm[v / 3];
@@ -60,6 +60,13 @@ TEST_F(SessionTest, TheVeinSurfaceFollowsTheCompressedTissue) {
   }
   EXPECT_GT(top_pressed, top_rest + 0.5f) << "the vein's top is pushed deeper by the probe";
   for (float n : session.frame_input(0).surfaces[0].normals) ASSERT_TRUE(std::isfinite(n));
+  // The skin over the tissue dents with it, translucent so the vein shows through.
+  const render::SurfaceView& skin = session.frame_input(0).surfaces[1];
+  EXPECT_LT(skin.rgba[3], 0.5f);
+  float deepest = -1e9f;
+  for (std::size_t v = 2; v < skin.positions_mm.size(); v += 3)
+    deepest = std::max(deepest, skin.positions_mm[v]);
+  EXPECT_GT(deepest, 1.0f) << "the skin under the probe is pressed in";
 }
 
 TEST_F(SessionTest, BadSamplesAreDroppedAndTheLastGoodPoseKept) {

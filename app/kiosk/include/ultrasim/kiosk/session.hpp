@@ -18,6 +18,7 @@
 #include "ultrasim/imaging/display_mapping.hpp"
 #include "ultrasim/imaging/fast_slicer.hpp"
 #include "ultrasim/imaging/published_slicer.hpp"
+#include "ultrasim/kiosk/deformable_skin.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/sim/engine.hpp"
@@ -161,6 +162,8 @@ class Session {
   std::vector<float> node_positions_;
   std::vector<float> node_displacement_;
   DeformedSurfaces structures_;
+  DeformableSkin skin_;
+  std::vector<render::SurfaceView> surface_views_;  // the structures', then the skin's
 };
 
 }  // namespace ultrasim::kiosk

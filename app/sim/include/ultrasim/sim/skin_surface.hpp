@@ -10,15 +10,15 @@
 namespace ultrasim::sim {
 
 struct SkinSettings {
-  double spacing_mm = 2.0;    // grid step of the skin's nodes
-  double margin_mm = 25.0;    // how far the skin reaches beyond the simulated tissue, each side
+  double spacing_mm = 4.0;  // grid step of the skin's nodes: the view's, coarse (CPU-drawn)
+  double margin_mm = 16.0;  // how far the skin reaches beyond the simulated tissue, each side
   // Springs along the triangles' edges (the skin's own stiffness), and zero-length springs
   // holding each node to its rest place (the tissue under the skin, as published), N/mm.
   double edge_stiffness_n_per_mm = 0.05;
   double anchor_stiffness_n_per_mm = 0.01;
-  double damping_per_s = 40.0;      // velocity damping
-  double node_mass_g = 1.0;  // with the stiffness and substeps: stable (h·ω ≈ 1 < 2)
-  int substeps_per_frame = 10;
+  double damping_per_s = 40.0;  // velocity damping
+  double node_mass_g = 4.0;     // with the stiffness and substeps: stable (h·ω ≈ 1 < 2)
+  int substeps_per_frame = 5;
 };
 
 // The skin over the body part, as published: its own mass-spring surface, anchored to its rest
@@ -44,9 +44,10 @@ class SkinSurface {
   std::span<const std::uint32_t> triangles() const { return triangles_; }
 
   // One frame of dt_s: the driven nodes placed at driven_positions_mm (driven_nodes() order),
-  // the free ones integrated (semi-implicit Euler, substeps) and pushed out of the probe. Never
-  // allocates. A non-finite step is refused: the skin keeps its last shape and false returns.
-  bool step(const ProbeCollider& probe, std::span<const Eigen::Vector3d> driven_positions_mm,
+  // the free ones integrated (semi-implicit Euler, substeps) and pushed out of the probe (null:
+  // no probe in reach). Never allocates. A non-finite input is refused (false, nothing changes);
+  // a step that went non-finite puts the skin back at rest (false): never garbage on screen.
+  bool step(const ProbeCollider* probe, std::span<const Eigen::Vector3d> driven_positions_mm,
             double dt_s);
 
   // The deepest dent below the rest surface, mm (0 at rest).
