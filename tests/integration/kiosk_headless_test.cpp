@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "report_json.hpp"
+#include "ultrasim/render/png_writer.hpp"
 
 namespace {
 
@@ -117,6 +118,27 @@ TEST_F(KioskHeadless, RunsToCompletionAndWritesASaneReport) {
                            "bscan-pressed.png", "bscan-lifted.png", "bscan-released.png"}) {
     EXPECT_TRUE(fs::exists(out_ / name)) << name;
   }
+}
+
+// The trainee's "save" at the press: the B-scan as a PNG recording the case, the probe's pose
+// and the settings.
+TEST_F(KioskHeadless, TheSavedImageRecordsCasePoseAndSettings) {
+  ASSERT_EQ(exit_code_, 0);
+  EXPECT_EQ(json_number(read_text(out_ / "report.json"), "saved_images"), 1);
+  const fs::path saved = out_ / "saved-1.png";
+  ASSERT_TRUE(fs::exists(saved));
+  EXPECT_EQ(read_grey_png(saved).width, 512);
+  const auto text = ultrasim::render::read_png_text(saved);
+  const auto field = [&text](const std::string& key) {
+    for (const auto& t : text)
+      if (t.key == key) return t.value;
+    return std::string("<missing>");
+  };
+  EXPECT_EQ(field("Case"), "default-upper-arm");
+  EXPECT_EQ(field("Method"), "exact");
+  EXPECT_EQ(field("Probe position mm"), "-2.000 0.000 8.000");  // the script's 8 mm press
+  EXPECT_EQ(field("Depth mm"), "40.000");
+  EXPECT_EQ(field("Frozen"), "no");
 }
 
 TEST_F(KioskHeadless, ProbeOffTheSkinShowsNoImage) {

@@ -46,6 +46,18 @@ Script sweep_press(const config::CaseScan& scan, double depth_mm) {
   script.keyframes.push_back({at(1.0), last.position_mm, last.orientation, ""});
   script.keyframes.push_back({at(1.5), last.position_mm, last.orientation, "deeper"});
   script.controls = {{at(0.0), true, depth_mm, {}, {}}, {at(1.0), false, 1.5 * depth_mm, {}, {}}};
+  // The trainee saves the image at the press (the keyframe marked "pressed").
+  for (const auto& k : script.keyframes) {
+    if (k.marker == "pressed") {
+      ControlEvent save;
+      save.time_us = k.time_us;
+      save.save = true;
+      script.controls.push_back(save);
+    }
+  }
+  std::stable_sort(
+      script.controls.begin(), script.controls.end(),
+      [](const ControlEvent& a, const ControlEvent& b) { return a.time_us < b.time_us; });
   return script;
 }
 
@@ -252,7 +264,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     const hal::TimestampUs now = script_clock.now_us();
     while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
       const ControlEvent& event = script.controls[next_control];
-      if (event.case_index) {
+      if (event.save) {
+        report.saved_images += 1;
+        const std::string name = "saved-" + std::to_string(report.saved_images) + ".png";
+        render::write_png_grey(options.out_dir / name, session->bscan(), session->bscan_width_px(),
+                               session->bscan_height_px(), session->image_record());
+      } else if (event.case_index) {
         // The old session goes first: a kiosk holds one case's engines at a time.
         config::AppSettings case_settings = settings;
         case_settings.sim.method = event.method.value_or(session->method());

@@ -77,6 +77,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << "  \"probe\": {\"source\": " << quoted(r.probe_source)
       << ", \"status_frames\": " << r.probe_status_frames
       << ", \"last_status\": " << quoted(r.probe_last_status) << "},\n"
+      << "  \"saved_images\": " << r.saved_images << ",\n"
       << "  \"probe_to_photon\": ";
   write_stats(out, r.probe_to_photon);
   out << ",\n  \"frame_time\": ";

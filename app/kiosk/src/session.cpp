@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -367,6 +368,41 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
     frame.scene_max_mm[a] = static_cast<float>(hi[a]);
   }
   return frame;
+}
+
+}  // namespace ultrasim::kiosk
+
+namespace ultrasim::kiosk {
+
+std::vector<render::PngText> Session::image_record() const {
+  const auto number = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3f", v);
+    return std::string(text);
+  };
+  std::vector<render::PngText> record = {
+      {"Software", "ultrasim"},
+      {"Case", tissue_.settings.name},
+      {"Method", std::string(sim::engine_key(method()))},
+      {"Gain dB", number(controls_.gain_db)},
+      {"Depth mm", number(controls_.depth_mm)},
+      {"Dynamic range dB", number(controls_.dynamic_range_db)},
+      {"Frozen", controls_.frozen ? "yes" : "no"},
+  };
+  std::string tgc;
+  for (double t : controls_.tgc_db) tgc += (tgc.empty() ? "" : " ") + number(t);
+  record.push_back({"TGC dB", tgc});
+  if (pose_) {
+    const auto& p = pose_->position_mm;
+    const auto& q = pose_->orientation;
+    record.push_back(
+        {"Probe position mm", number(p.x()) + " " + number(p.y()) + " " + number(p.z())});
+    record.push_back({"Probe orientation wxyz", number(q.w()) + " " + number(q.x()) + " " +
+                                                    number(q.y()) + " " + number(q.z())});
+  } else {
+    record.push_back({"Probe position mm", "none"});
+  }
+  return record;
 }
 
 }  // namespace ultrasim::kiosk

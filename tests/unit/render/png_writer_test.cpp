@@ -101,3 +101,39 @@ TEST_F(PngWriterTest, InconsistentSizesAreRejected) {
 
 }  // namespace
 }  // namespace ultrasim::render
+
+namespace ultrasim::render {
+namespace {
+
+// Text fields go in as tEXt chunks the PNG's readers keep (libpng still decodes the pixels) and
+// come back in order.
+TEST(PngText, FieldsAreWrittenAndReadBack) {
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("ultrasim-png-text-" + std::to_string(::getpid()) + ".png");
+  const std::vector<std::uint8_t> grey = {0, 64, 128, 255, 10, 20};
+  const std::vector<PngText> text = {
+      {"Case", "default-upper-arm"}, {"Probe position mm", "-2.000 0.000 8.000"}, {"Empty", ""}};
+  write_png_grey(path, grey, 3, 2, text);
+  const auto back = read_png_text(path);
+  ASSERT_EQ(back.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(back[i].key, text[i].key);
+    EXPECT_EQ(back[i].value, text[i].value);
+  }
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  ASSERT_TRUE(png_image_begin_read_from_file(&image, path.c_str())) << image.message;
+  image.format = PNG_FORMAT_GRAY;
+  std::vector<std::uint8_t> pixels(PNG_IMAGE_SIZE(image));
+  ASSERT_TRUE(png_image_finish_read(&image, nullptr, pixels.data(), 0, nullptr));
+  EXPECT_EQ(pixels, grey);
+  EXPECT_THROW(write_png_grey(path, grey, 3, 2, std::vector<PngText>{{"", "x"}}),
+               std::invalid_argument);
+  EXPECT_THROW(write_png_grey(path, grey, 3, 2, std::vector<PngText>{{std::string(80, 'k'), ""}}),
+               std::invalid_argument);
+  std::filesystem::remove(path);
+  EXPECT_THROW(read_png_text(path), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace ultrasim::render

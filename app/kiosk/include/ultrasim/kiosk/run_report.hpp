@@ -50,6 +50,7 @@ struct RunReport {
   std::string probe_source;
   std::int64_t probe_status_frames = 0;
   std::string probe_last_status;
+  std::int64_t saved_images = 0;  // the save control's PNGs (saved-N.png)
   // From each accepted pose's measurement to its frame's presentation (FrameLoop).
   sched::FrameTimeStats probe_to_photon;
   std::int64_t frames_in_contact = 0;

@@ -14,13 +14,16 @@ namespace ultrasim::kiosk {
 // A change of the scanner's controls at a moment of a script, as a trainee's button press: the
 // freeze and depth controls, or (when `method` is set) the live switch of deformation method, or
 // (when `case_index` is set) a pick from the case list: the session restarts on that case, with
-// `method` if given.
+// `method` if given; or (when `save` is set) the save button.
 struct ControlEvent {
   hal::TimestampUs time_us = 0;
   bool frozen = false;
   double depth_mm = 0.0;
   std::optional<sim::EngineKind> method;
   std::optional<int> case_index;
+  // The trainer's "save": the B-scan written as a PNG with its record (Session::image_record);
+  // nothing else changes.
+  bool save = false;
 };
 
 struct Script {

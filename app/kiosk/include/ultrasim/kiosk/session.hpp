@@ -21,6 +21,7 @@
 #include "ultrasim/kiosk/deformable_skin.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
+#include "ultrasim/render/png_writer.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
@@ -87,6 +88,10 @@ class Session {
 
   // Views of the latest results for the renderer, valid until the next update() or stage.
   render::FrameInput frame_input(std::int64_t frame_index) const;
+
+  // What a saved image records with it (the trainer's "save"): the case, the method, the probe's
+  // pose and the scanner's settings, as PNG text fields. Allocates; call between frames.
+  std::vector<render::PngText> image_record() const;
 
   // What the pose source says is wrong (hal::PoseSource::status_text), shown on screen until
   // changed; empty clears it. Allocates only beyond 160 characters.
