@@ -1,7 +1,6 @@
 #include "bscan_panel.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 
 #include "bitmap_font.hpp"
@@ -165,11 +164,7 @@ void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, Bsca
   // following the probe.
   if (!frame.probe_status.empty()) {
     TextBuffer status;
-    status.append("PROBE: ");
-    for (char c : frame.probe_status) {
-      const char upper = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-      status.append(std::string_view(&upper, 1));  // the bitmap font has capitals only
-    }
+    status.append("PROBE: ").append_upper(frame.probe_status);
     const float bottom = py + static_cast<float>(p.height_px);
     over.fill_rect(px + 1.0f, bottom - 16.0f * s, pw - 2.0f, 15.0f * s, theme::kPanelBscan);
     over.text(px + 6.0f * s, bottom - 12.0f * s, s, status.view(), theme::kWarning);

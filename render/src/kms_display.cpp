@@ -30,31 +30,24 @@ std::string errno_text() {
   return std::strerror(errno);
 }
 
-// A property's id by name on a KMS object; 0 when it has none.
-std::uint32_t property_id(int fd, std::uint32_t object, std::uint32_t type, const char* name) {
-  drmModeObjectProperties* props = drmModeObjectGetProperties(fd, object, type);
-  if (props == nullptr) return 0;
+// A property of a KMS object by name: its id and current value; id 0 when it has none.
+struct Property {
   std::uint32_t id = 0;
-  for (std::uint32_t i = 0; i < props->count_props && id == 0; ++i) {
-    drmModePropertyRes* p = drmModeGetProperty(fd, props->props[i]);
-    if (p != nullptr && std::strcmp(p->name, name) == 0) id = p->prop_id;
-    drmModeFreeProperty(p);
-  }
-  drmModeFreeObjectProperties(props);
-  return id;
-}
-
-std::uint64_t property_value(int fd, std::uint32_t object, std::uint32_t type, const char* name) {
-  drmModeObjectProperties* props = drmModeObjectGetProperties(fd, object, type);
-  if (props == nullptr) return 0;
   std::uint64_t value = 0;
-  for (std::uint32_t i = 0; i < props->count_props; ++i) {
+};
+
+Property find_property(int fd, std::uint32_t object, std::uint32_t type, const char* name) {
+  drmModeObjectProperties* props = drmModeObjectGetProperties(fd, object, type);
+  if (props == nullptr) return {};
+  Property found;
+  for (std::uint32_t i = 0; i < props->count_props && found.id == 0; ++i) {
     drmModePropertyRes* p = drmModeGetProperty(fd, props->props[i]);
-    if (p != nullptr && std::strcmp(p->name, name) == 0) value = props->prop_values[i];
+    if (p != nullptr && std::strcmp(p->name, name) == 0)
+      found = {p->prop_id, props->prop_values[i]};
     drmModeFreeProperty(p);
   }
   drmModeFreeObjectProperties(props);
-  return value;
+  return found;
 }
 
 }  // namespace
@@ -171,7 +164,7 @@ struct KmsDisplay::Impl {
       for (std::uint32_t i = 0; planes != nullptr && i < planes->count_planes && !plane_id; ++i) {
         drmModePlane* p = drmModeGetPlane(fd, planes->planes[i]);
         if (p != nullptr && crtc_index >= 0 && (p->possible_crtcs & (1u << crtc_index)) &&
-            property_value(fd, p->plane_id, DRM_MODE_OBJECT_PLANE, "type") ==
+            find_property(fd, p->plane_id, DRM_MODE_OBJECT_PLANE, "type").value ==
                 DRM_PLANE_TYPE_PRIMARY) {
           plane_id = p->plane_id;
         }
@@ -179,13 +172,13 @@ struct KmsDisplay::Impl {
       }
       drmModeFreePlaneResources(planes);
       const auto conn = [&](const char* n) {
-        return property_id(fd, connector_id, DRM_MODE_OBJECT_CONNECTOR, n);
+        return find_property(fd, connector_id, DRM_MODE_OBJECT_CONNECTOR, n).id;
       };
       const auto crtc = [&](const char* n) {
-        return property_id(fd, crtc_id, DRM_MODE_OBJECT_CRTC, n);
+        return find_property(fd, crtc_id, DRM_MODE_OBJECT_CRTC, n).id;
       };
       const auto plane = [&](const char* n) {
-        return property_id(fd, plane_id, DRM_MODE_OBJECT_PLANE, n);
+        return find_property(fd, plane_id, DRM_MODE_OBJECT_PLANE, n).id;
       };
       prop = {conn("CRTC_ID"), crtc("MODE_ID"), crtc("ACTIVE"), plane("FB_ID"), plane("CRTC_ID"),
               plane("SRC_X"),  plane("SRC_Y"),  plane("SRC_W"), plane("SRC_H"), plane("CRTC_X"),

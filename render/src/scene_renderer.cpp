@@ -2,7 +2,6 @@
 
 #include <GLES3/gl3.h>
 
-#include <cctype>
 #include <cmath>
 
 #include "bitmap_font.hpp"
@@ -103,12 +102,7 @@ void add_stats(const ScreenLayout& layout, const StatsView& stats, ColorBatch& o
   t.append("TO PHOTON P99 ").append_fixed(stats.probe_to_photon_p99_ms, 1).append(" MS");
   line(t, stats.probe_to_photon_p99_ms > 33.3f ? theme::kWarning : theme::kTextSecondary);
   t = {};
-  t.append("PROBE ");
-  for (char c : stats.probe_source) {
-    const char upper = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-    t.append(std::string_view(&upper, 1));
-  }
-  t.append(stats.probe_ok ? " OK" : " LOST");
+  t.append("PROBE ").append_upper(stats.probe_source).append(stats.probe_ok ? " OK" : " LOST");
   line(t, stats.probe_ok ? theme::kAccent : theme::kWarning);
 }
 

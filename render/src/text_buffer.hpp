@@ -4,6 +4,7 @@
 // heap allocation. Internal to render/.
 
 #include <array>
+#include <cctype>
 #include <charconv>
 #include <cstdint>
 #include <string_view>
@@ -15,6 +16,15 @@ class TextBuffer {
   TextBuffer& append(std::string_view text) {
     for (const char c : text) {
       if (size_ < chars_.size()) chars_[size_++] = c;
+    }
+    return *this;
+  }
+  // In capitals: the bitmap font has no small letters.
+  TextBuffer& append_upper(std::string_view text) {
+    for (const char c : text) {
+      if (size_ < chars_.size()) {
+        chars_[size_++] = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      }
     }
     return *this;
   }

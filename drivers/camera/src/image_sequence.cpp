@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "grey_frame.hpp"
+
 namespace ultrasim::drivers::camera {
 
 namespace {
@@ -92,13 +94,7 @@ bool ImageSequenceSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs t
     }
     frame.timestamp_us = clock_.now_us();
     frame.sequence = sequence_++;
-    frame.width = grey.cols;
-    frame.height = grey.rows;
-    frame.grey.resize(static_cast<std::size_t>(grey.cols) * grey.rows);
-    for (int y = 0; y < grey.rows; ++y) {
-      std::copy_n(grey.ptr<std::uint8_t>(y), grey.cols,
-                  frame.grey.data() + static_cast<std::size_t>(y) * grey.cols);
-    }
+    detail::copy_grey(grey, frame);
     return true;
   }
   return false;

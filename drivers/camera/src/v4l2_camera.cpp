@@ -5,6 +5,8 @@
 #include <opencv2/videoio.hpp>
 #include <thread>
 
+#include "grey_frame.hpp"
+
 namespace ultrasim::drivers::camera {
 
 struct V4l2CameraSource::Impl {
@@ -64,13 +66,7 @@ bool V4l2CameraSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs time
     cv::cvtColor(impl_->image, impl_->grey, cv::COLOR_BGRA2GRAY);
     grey = &impl_->grey;
   }
-  frame.width = grey->cols;
-  frame.height = grey->rows;
-  frame.grey.resize(static_cast<std::size_t>(grey->cols) * grey->rows);
-  for (int y = 0; y < grey->rows; ++y) {
-    std::copy_n(grey->ptr<std::uint8_t>(y), grey->cols,
-                frame.grey.data() + static_cast<std::size_t>(y) * grey->cols);
-  }
+  detail::copy_grey(*grey, frame);
   return true;
 }
 
