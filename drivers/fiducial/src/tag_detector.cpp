@@ -29,7 +29,6 @@ TagDetector::TagDetector(const TagDetectorSettings& settings)
     bad("quad_decimate must be in [1, 8]");
   if (!(settings.quad_sigma >= 0.0 && settings.quad_sigma <= 5.0))
     bad("quad_sigma must be in [0, 5]");
-  if (settings.threads < 1 || settings.threads > 64) bad("threads must be in [1, 64]");
   if (settings.max_hamming < 0 || settings.max_hamming > 3) bad("max_hamming must be in [0, 3]");
   if (!(settings.upsample >= 1.0 && settings.upsample <= 4.0)) bad("upsample must be in [1, 4]");
   if (!(settings.equalise_clip_limit >= 0.0 && settings.equalise_clip_limit <= 40.0))
@@ -51,7 +50,7 @@ TagDetector::TagDetector(const TagDetectorSettings& settings)
   apriltag_detector_add_family_bits(impl_->detector, impl_->family, settings.max_hamming);
   impl_->detector->quad_decimate = static_cast<float>(settings.quad_decimate);
   impl_->detector->quad_sigma = static_cast<float>(settings.quad_sigma);
-  impl_->detector->nthreads = settings.threads;
+  impl_->detector->nthreads = 1;  // its worker pool is unsafe: see the class comment
   impl_->detector->refine_edges = settings.refine_edges;
   impl_->detector->decode_sharpening = settings.decode_sharpening;
 }

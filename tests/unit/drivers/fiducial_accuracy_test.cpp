@@ -175,7 +175,7 @@ TEST(FiducialAccuracy, CubeFailsWhereOneFaceLooksAtTheCamera) {
     return std::sqrt(o.rotation_sq / std::max(o.tracked, 1));
   };
   std::printf(
-      "face-on, 30 noisy frames: cube %d tracked, %d ambiguous, %d markers at most, "
+      "face-on, 30 noisy frames: cube %d tracked, %d ambiguous, %d with < 3 markers, "
       "rotation RMS %.3f worst %.3f deg, flips %d; dodecahedron %d tracked, fewest %d "
       "markers, rotation RMS %.3f worst %.3f deg\n",
       cube_face_on.tracked, cube_face_on.ambiguous, 30 - cube_face_on.at_least_three,

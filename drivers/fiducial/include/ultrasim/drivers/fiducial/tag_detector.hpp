@@ -23,8 +23,6 @@ struct TagDetectorSettings {
   double quad_decimate = 1.0;
   // Gaussian blur (pixels) before the quad search; 0 = none. Helps noisy images, costs time.
   double quad_sigma = 0.0;
-  // Threads AprilTag's own pool uses for one image (the tracking thread's helpers).
-  int threads = 2;
   // Snap each quad's edges to the image's gradients at full resolution. Costs ~10 %; without it
   // a decimated search's corners are off by up to a pixel.
   bool refine_edges = true;
@@ -63,7 +61,10 @@ struct PixelRegion {
   bool empty() const { return width <= 0 || height <= 0; }
 };
 
-// AprilTag's detector for one family. Not thread-safe: one per tracking thread.
+// AprilTag's detector for one family. Not thread-safe: one per tracking thread. It runs on the
+// caller's thread only: AprilTag 3.3's own worker pool (Debian 12's) can call a task through a
+// pointer into an array another thread is reallocating (fixed upstream in AprilRobotics/apriltag
+// pull request 339); with two workers, 2 of 12 runs of the accuracy test crashed, three at once.
 class TagDetector {
  public:
   // Throws std::invalid_argument naming the setting that is out of range or the family unknown.
