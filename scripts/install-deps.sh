@@ -18,6 +18,8 @@ packages=(
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
   # the dedicated display: DRM/KMS page flips and GBM buffers (render/kms_display)
   libdrm-dev libgbm-dev
+  # the trainer's controls: Dear ImGui (its GLES 3 backend is built from the package's source)
+  libimgui-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # reference FEM solver for the accuracy tests (DESIGN.md §4)

@@ -137,13 +137,21 @@ void add_bscan_overlay(const FrameInput& frame, const ScreenLayout& layout, Bsca
     over.text(tag_x + 4.0f * s, text_y, s, "FROZEN", theme::kPanelBscan);
     tag_end = tag_x + tag_w;
   }
-  // "DEPTH 4.0 CM" where there is room, else just "4.0 CM".
+  // "GAIN +0 DB  DEPTH 4.0 CM" where there is room, else just "4.0 CM".
   TextBuffer depth_label;
-  depth_label.append("DEPTH ").append_fixed(depth_mm / 10.0f, 1).append(" CM");
+  const float gain_db = std::isfinite(frame.bscan.gain_db) ? frame.bscan.gain_db : 0.0f;
+  depth_label.append("GAIN ")
+      .append(gain_db < 0.0f ? "-" : "+")
+      .append_fixed(std::abs(gain_db), 0)
+      .append(" DB  DEPTH ")
+      .append_fixed(depth_mm / 10.0f, 1)
+      .append(" CM");
   std::string_view depth_text = depth_label.view();
-  if (px + pw - 6.0f * s - text_width(depth_text, s) < tag_end + 6.0f * s) {
-    depth_text.remove_prefix(6);
-  }
+  const auto fits = [&](std::string_view text) {
+    return px + pw - 6.0f * s - text_width(text, s) >= tag_end + 6.0f * s;
+  };
+  if (!fits(depth_text)) depth_text.remove_prefix(depth_text.find("DEPTH"));
+  if (!fits(depth_text)) depth_text.remove_prefix(6);
   over.text(px + pw - 6.0f * s - text_width(depth_text, s), text_y, s, depth_text,
             theme::kTextSecondary);
 

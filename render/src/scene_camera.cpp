@@ -7,7 +7,7 @@
 namespace ultrasim::render::detail {
 
 SceneCamera frame_scene(const std::array<float, 3>& min_mm, const std::array<float, 3>& max_mm,
-                        float headroom_mm, const SceneStyle& style, float aspect) {
+                        float headroom_mm, const SceneStyle& style, float aspect, float zoom) {
   Vec3 lo{min_mm[0], min_mm[1], min_mm[2]};
   Vec3 hi{max_mm[0], max_mm[1], max_mm[2]};
   bool valid = true;
@@ -68,7 +68,8 @@ SceneCamera frame_scene(const std::array<float, 3>& min_mm, const std::array<flo
   target = target + right * (0.5f * (min_x + max_x) * distance) +
            cam_up * (0.5f * (min_y + max_y) * distance);
   // 6 % breathing room around the scene.
-  distance = fit_distance(target) * 1.06f;
+  distance =
+      fit_distance(target) * 1.06f / (std::isfinite(zoom) ? std::clamp(zoom, 0.25f, 8.0f) : 1.0f);
 
   SceneCamera camera;
   camera.eye_mm = target + to_eye * distance;

@@ -11,6 +11,8 @@ namespace {
 constexpr int kTitleStripUnits = 22;
 constexpr int kBottomMarginUnits = 10;
 constexpr int kDepthScaleUnits = 26;
+// Two rows of touch-sized buttons (render::TrainerUi) with their gaps.
+constexpr int kControlsUnits = 48;
 
 }  // namespace
 
@@ -26,6 +28,9 @@ ScreenLayout layout_screen(int width_px, int height_px, float image_width_mm, fl
   const int margin = 4 * s;
   const int header_h = 17 * s;
   layout.header = {0, 0, w, header_h};
+  // After "ULTRASIM" (its mark and name take 69 dots) up to the scan state and frame counter
+  // ("NO CONTACT  FRAME 999999" with its lamp: 156 dots).
+  layout.header_controls = {80 * s, 0, std::max(w - (80 + 170) * s, 0), header_h};
 
   const float fraction =
       std::isfinite(view_fraction) ? std::clamp(view_fraction, 0.2f, 0.8f) : 0.55f;
@@ -40,8 +45,13 @@ ScreenLayout layout_screen(int width_px, int height_px, float image_width_mm, fl
   // side (the left one holds the depth scale), its top under the panel's title strip.
   const int scale_w = kDepthScaleUnits * s;
   const int avail_w = std::max(layout.bscan_panel.width_px - 2 * (scale_w + margin), 1);
-  const int avail_h =
-      std::max(layout.bscan_panel.height_px - (kTitleStripUnits + kBottomMarginUnits) * s, 1);
+  const int controls_h = kControlsUnits * s;
+  layout.controls = {layout.bscan_panel.x_px + margin,
+                     layout.bscan_panel.y_px + layout.bscan_panel.height_px - controls_h - margin,
+                     std::max(layout.bscan_panel.width_px - 2 * margin, 1), controls_h};
+  const int avail_h = std::max(
+      layout.bscan_panel.height_px - (kTitleStripUnits + kBottomMarginUnits + kControlsUnits) * s,
+      1);
   const bool valid_extent = std::isfinite(image_width_mm) && std::isfinite(image_depth_mm) &&
                             image_width_mm > 0.0f && image_depth_mm > 0.0f;
   const double aspect = valid_extent ? static_cast<double>(image_width_mm) / image_depth_mm : 1.0;

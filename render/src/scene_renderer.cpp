@@ -27,7 +27,8 @@ float positive_or(float value, float fallback) {
   return std::isfinite(value) && value > 0.0f ? value : fallback;
 }
 
-// Title bar: product mark and name on the left; the scan state and frame counter on the right.
+// Title bar: product mark and name on the left; the scan state and frame counter on the right;
+// between them the trainer's case list, method and dialogs (render::TrainerUi).
 void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState state,
                 ColorBatch& over) {
   const auto s = static_cast<float>(layout.ui_scale);
@@ -40,7 +41,7 @@ void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState 
   float x = 6.0f * s;
   over.fill_rect(x, text_y, 3.0f * s, 7.0f * s, theme::kAccent);
   x += 7.0f * s;
-  x += over.text(x, text_y, s, "ULTRASIM", theme::kTextPrimary) + 8.0f * s;
+  over.text(x, text_y, s, "ULTRASIM", theme::kTextPrimary);
 
   detail::TextBuffer counter;
   counter.append("FRAME ").append_int(frame.frame_index);
@@ -65,13 +66,6 @@ void add_header(const ScreenLayout& layout, const FrameInput& frame, BscanState 
   // A small lamp before the word, in its colour.
   over.fill_rect(right - 6.0f * s, text_y + 2.0f * s, 3.0f * s, 3.0f * s, status_colour);
   over.text(right, text_y, s, status, status_colour);
-
-  // The subtitle only where it does not run into the status on a narrow screen.
-  constexpr std::string_view kSubtitle = "ULTRASOUND TRAINER";
-  if (x + static_cast<float>(detail::text_width_dots(kSubtitle)) * s + 12.0f * s <
-      right - 6.0f * s) {
-    over.text(x, text_y, s, kSubtitle, theme::kTextSecondary);
-  }
 }
 
 // The stats overlay, right-aligned at the top of the 3D view: one short line each.

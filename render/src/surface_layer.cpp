@@ -85,6 +85,7 @@ void SurfaceLayer::upload(std::span<const SurfaceView> surfaces) {
 
     for (int c = 0; c < 4; ++c) slot.rgba[c] = std::clamp(surface.rgba[c], 0.0f, 1.0f);
     slot.index_count = static_cast<GLsizei>(index_count);
+    slot.skin = surface.skin;
     if (slot.rgba[3] < 1.0f) {
       ++translucent_count_;
     } else {
@@ -108,7 +109,8 @@ void SurfaceLayer::draw_slot(const SurfaceProgram& program, const Slot& slot) {
   glDrawElements(GL_TRIANGLES, slot.index_count, GL_UNSIGNED_INT, nullptr);
 }
 
-void SurfaceLayer::draw_opaque(const SurfaceProgram& program, const SceneCamera& camera) const {
+void SurfaceLayer::draw_opaque(const SurfaceProgram& program, const SceneCamera& camera,
+                               bool show_skin) const {
   if (opaque_count_ == 0) return;
   use(program, camera);
   // Culling halves what llvmpipe rasterises; the front faces hide the back ones anyway.
@@ -116,21 +118,23 @@ void SurfaceLayer::draw_opaque(const SurfaceProgram& program, const SceneCamera&
   glCullFace(GL_BACK);
   for (std::size_t s = 0; s < active_count_; ++s) {
     const Slot& slot = *slots_[s];
-    if (slot.index_count > 0 && slot.rgba[3] >= 1.0f) draw_slot(program, slot);
+    if (slot.index_count > 0 && slot.rgba[3] >= 1.0f && (show_skin || !slot.skin)) {
+      draw_slot(program, slot);
+    }
   }
   glBindVertexArray(0);
   glDisable(GL_CULL_FACE);
 }
 
-void SurfaceLayer::draw_translucent(const SurfaceProgram& program,
-                                    const SceneCamera& camera) const {
+void SurfaceLayer::draw_translucent(const SurfaceProgram& program, const SceneCamera& camera,
+                                    bool show_skin) const {
   if (translucent_count_ == 0) return;
   use(program, camera);
   glEnable(GL_CULL_FACE);
   glDepthMask(GL_FALSE);
   for (std::size_t s = 0; s < active_count_; ++s) {
     const Slot& slot = *slots_[s];
-    if (slot.index_count == 0 || slot.rgba[3] >= 1.0f) continue;
+    if (slot.index_count == 0 || slot.rgba[3] >= 1.0f || (slot.skin && !show_skin)) continue;
     glCullFace(GL_FRONT);
     draw_slot(program, slot);
     glCullFace(GL_BACK);

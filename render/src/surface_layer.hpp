@@ -39,14 +39,17 @@ class SurfaceLayer {
 
   // Surfaces with alpha 1, back faces culled (closed, counter-clockwise outside: a back face is
   // always behind a front face of its own surface), depth written. Expects depth testing on.
-  void draw_opaque(const SurfaceProgram& program, const SceneCamera& camera) const;
+  // show_skin false: the surfaces marked as skin are left out (cut away).
+  void draw_opaque(const SurfaceProgram& program, const SceneCamera& camera,
+                   bool show_skin = true) const;
 
   // Surfaces with alpha < 1, blended, without depth writes so that what lies behind them in the
   // same pass still shows. Each surface draws its back faces (the far wall, seen through the
   // near one) before its front faces, so a convex cross-section composes in depth order; two
   // translucent surfaces over each other compose in the order the frame lists them. Expects
   // depth testing and blending on. Call after the opaque scene.
-  void draw_translucent(const SurfaceProgram& program, const SceneCamera& camera) const;
+  void draw_translucent(const SurfaceProgram& program, const SceneCamera& camera,
+                        bool show_skin = true) const;
 
  private:
   struct Slot {
@@ -68,6 +71,7 @@ class SurfaceLayer {
     // This frame.
     GLsizei index_count = 0;  // 0: not drawn
     bool flat_shading = true;
+    bool skin = false;
     std::array<float, 4> rgba{};
   };
 

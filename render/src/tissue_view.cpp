@@ -250,13 +250,21 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
 
   const ProbeView& probe = frame.probe;
   const float body_height = positive_or(probe.body_height_mm, 60.0f);
+  // The trainee's orbit turns the style's viewpoint; not-finite offsets leave it as styled.
+  SceneStyle orbit = style_;
+  const ViewOptions& view = frame.view;
+  if (std::isfinite(view.azimuth_offset_deg)) orbit.camera_azimuth_deg += view.azimuth_offset_deg;
+  if (std::isfinite(view.elevation_offset_deg)) {
+    orbit.camera_elevation_deg += view.elevation_offset_deg;
+  }
   const SceneCamera camera =
-      frame_scene(frame.scene_min_mm, frame.scene_max_mm, body_height, style_,
-                  static_cast<float>(r.width_px) / static_cast<float>(r.height_px));
+      frame_scene(frame.scene_min_mm, frame.scene_max_mm, body_height, orbit,
+                  static_cast<float>(r.width_px) / static_cast<float>(r.height_px), view.zoom);
   const Mat4 view_projection = multiply(camera.projection, camera.view);
 
-  // Mesh lines first: the opaque bulk of the scene.
-  if (const GLsizei index_count = upload_mesh(frame.mesh); index_count > 0) {
+  // Mesh lines first: the opaque bulk of the scene (and on a software rasteriser much of its
+  // cost: not even uploaded when the trainee hides it).
+  if (const GLsizei index_count = view.show_mesh ? upload_mesh(frame.mesh) : 0; index_count > 0) {
     glUseProgram(programs.mesh.id);
     glUniformMatrix4fv(programs.mesh.u_view, 1, GL_FALSE, camera.view.data());
     glUniformMatrix4fv(programs.mesh.u_projection, 1, GL_FALSE, camera.projection.data());
@@ -274,7 +282,7 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
   // Opaque surfaces inside the tissue: depth-tested against the lines, so the wireframe in front
   // of a vessel crosses it and the wireframe behind it is hidden ("under the skin").
   surfaces_.upload(frame.surfaces);
-  surfaces_.draw_opaque(programs.surface, camera);
+  surfaces_.draw_opaque(programs.surface, camera, view.show_skin);
 
   // Bounds, collider, probe and the plane's frame.
   build_geometry(frame);
@@ -315,7 +323,7 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
 
   // Translucent surfaces after everything opaque, so what lies behind them is already there to
   // show through; before the image plane, which is translucent too and drawn last.
-  surfaces_.draw_translucent(programs.surface, camera);
+  surfaces_.draw_translucent(programs.surface, camera, view.show_skin);
 
   // The B-scan on its plane, translucent so the mesh behind it still shows; drawn last, without
   // depth writes, so it does not hide what lies in front of it.

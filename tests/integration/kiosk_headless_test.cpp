@@ -208,6 +208,104 @@ TEST_F(KioskHeadless, VeinCollapsesUnderPressureWhileTheArteryStaysOpen) {
   EXPECT_GT(vein_released, 0.8 * vein_rest) << "the vein reopens when the pressure is released";
 }
 
+// The trainer script: the probe rests over the vessels and the trainee works the controls on
+// screen by touch alone (ultrasim-kiosk --script trainer). What the screen then shows is measured.
+class KioskTrainer : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    out_ = fs::temp_directory_path() / ("ultrasim-trainer-" + std::to_string(::getpid()));
+    fs::remove_all(out_);
+    const std::string command = std::string(ULTRASIM_KIOSK_EXE) + " --headless --case " +
+                                ULTRASIM_DEFAULT_CASE + " --script trainer --out " + out_.string() +
+                                " > " + (out_.string() + ".log") + " 2>&1";
+    exit_code_ = std::system(command.c_str());
+    json_ = read_text(out_ / "report.json");
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(out_);
+    fs::remove(out_.string() + ".log");
+  }
+  // A number of the snapshot taken at `marker`.
+  static double snapshot(const std::string& marker, const std::string& key) {
+    const std::size_t at = json_.find("\"marker\": \"" + marker + "\"");
+    EXPECT_NE(at, std::string::npos) << marker;
+    return at == std::string::npos ? -1.0 : json_number(json_, key, at);
+  }
+  // The whole snapshot object taken at `marker`.
+  static std::string snapshot_text(const std::string& marker) {
+    const std::size_t at = json_.find("\"marker\": \"" + marker + "\"");
+    if (at == std::string::npos) return {};
+    return json_.substr(at, json_.find('}', at) - at);
+  }
+  static inline fs::path out_;
+  static inline int exit_code_ = -1;
+  static inline std::string json_;
+};
+
+TEST_F(KioskTrainer, EveryScriptedTouchFoundItsControl) {
+  ASSERT_EQ(exit_code_, 0) << read_text(out_.string() + ".log");
+  EXPECT_EQ(json_number(json_, "taps"), 35);
+  EXPECT_EQ(json_number(json_, "taps_missed"), 0) << json_;
+  EXPECT_EQ(json_number(json_, "refused_values"), 0);
+}
+
+// The compression buttons press the probe 4 × 2 mm: the skin dents by as much, the vein
+// collapses and the artery stays open; easing off restores them.
+TEST_F(KioskTrainer, CompressionButtonsDentTheSkinAndCollapseTheVein) {
+  ASSERT_EQ(exit_code_, 0);
+  EXPECT_LT(snapshot("rest", "skin_dent_mm"), 0.05);
+  EXPECT_EQ(snapshot("pressed", "compression_mm"), 8.0);
+  EXPECT_NEAR(snapshot("pressed", "skin_dent_mm"), 8.0, 0.5);
+  EXPECT_EQ(snapshot("released", "compression_mm"), 0.0);
+  EXPECT_LT(snapshot("released", "skin_dent_mm"), 0.05);
+  const GreyImage rest = read_grey_png(out_ / "bscan-rest.png");
+  const GreyImage pressed = read_grey_png(out_ / "bscan-pressed.png");
+  const double vein_rest = dark_area_mm2(rest, -16, 1, 3, 28);
+  const double vein_pressed = dark_area_mm2(pressed, -16, 1, 3, 28);
+  const double artery_rest = dark_area_mm2(rest, 3, 14, 3, 28);
+  const double artery_pressed = dark_area_mm2(pressed, 3, 14, 3, 28);
+  std::cout << "buttons: vein " << vein_rest << " -> " << vein_pressed << " mm2, artery "
+            << artery_rest << " -> " << artery_pressed << " mm2\n";
+  EXPECT_GT(vein_rest, 8.0);
+  EXPECT_LT(vein_pressed, 0.1 * vein_rest);
+  EXPECT_GT(artery_pressed, 0.9 * artery_rest);
+}
+
+// Calipers placed by two taps on the B-scan 20 mm apart read 20 mm (a screen pixel is 0.09 mm).
+TEST_F(KioskTrainer, CalipersReadTheKnownDistance) {
+  ASSERT_EQ(exit_code_, 0);
+  EXPECT_EQ(snapshot("pressed", "caliper_mm"), 0.0);
+  EXPECT_NEAR(snapshot("measured", "caliper_mm"), 20.0, 0.15);
+  EXPECT_NE(snapshot_text("measured").find("\"frozen\": true"), std::string::npos)
+      << "measured on the frozen image";
+}
+
+TEST_F(KioskTrainer, SaveFreezeGainDepthAndMethodWorkByTouch) {
+  ASSERT_EQ(exit_code_, 0);
+  const auto text = ultrasim::render::read_png_text(out_ / "saved-1.png");
+  const auto field = [&text](const std::string& key) {
+    for (const auto& t : text)
+      if (t.key == key) return t.value;
+    return std::string("<missing>");
+  };
+  EXPECT_EQ(field("Frozen"), "yes");
+  EXPECT_EQ(field("Compression mm"), "8.000");
+  EXPECT_EQ(snapshot("released", "gain_db"), 3.0);
+  EXPECT_EQ(snapshot("released", "depth_mm"), 50.0);
+  EXPECT_EQ(json_number(json_, "method_switches"), 1);
+  EXPECT_NE(snapshot_text("orbited").find("\"method\": \"msds-explicit\""), std::string::npos)
+      << "picked from the method list";
+}
+
+// The settings dialog applies a valid edit (the session restarts with it) and refuses a time
+// step stepped below zero with the schema's own words.
+TEST_F(KioskTrainer, SettingsAreCheckedByTheConfigSchema) {
+  ASSERT_EQ(exit_code_, 0);
+  EXPECT_EQ(json_number(json_, "settings_applied"), 1);
+  EXPECT_EQ(json_number(json_, "settings_refused"), 1);
+  EXPECT_NE(json_.find("msds.time_step_s: out of range: -0.001"), std::string::npos) << json_;
+}
+
 // How far (mm, negative = towards the probe) the structures in rows [row0, row1) of `before`
 // moved in `after`: the vertical shift with the highest normalised cross-correlation.
 double vertical_shift_mm(const GreyImage& before, const GreyImage& after, double depth_mm, int row0,

@@ -57,6 +57,7 @@ DeformableSkin::DeformableSkin(const TissueCase& tissue, const sim::SkinSettings
   view_.normals = normals_f_;
   view_.triangles = indices_;
   view_.rgba = {0.93f, 0.76f, 0.66f, 0.28f};  // skin, translucent: the vessels show through
+  view_.skin = true;                          // cut away when the trainee looks at the bare tissue
   refresh_view();
 }
 

@@ -8,6 +8,7 @@
 #include <optional>
 #include <stdexcept>
 #include <thread>
+#include <variant>
 
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/sim_probe/motion_file.hpp"
@@ -16,13 +17,16 @@
 #include "ultrasim/kiosk/probe_sources.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
 #include "ultrasim/kiosk/script.hpp"
+#include "ultrasim/kiosk/scripted_touch.hpp"
 #include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/kiosk/settings_dialog.hpp"
 #include "ultrasim/kiosk/soak_script.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/kms_display.hpp"
 #include "ultrasim/render/offscreen_display.hpp"
 #include "ultrasim/render/png_writer.hpp"
 #include "ultrasim/render/scene_renderer.hpp"
+#include "ultrasim/render/trainer_ui.hpp"
 
 namespace ultrasim::kiosk {
 
@@ -86,24 +90,103 @@ Script compare_methods(const config::CaseScan& scan) {
   return script;
 }
 
+// trainer: the probe rests over the vessels while the trainee works the controls on screen, by
+// touch alone: presses with the compression buttons, freezes, measures with the calipers,
+// saves, turns gain and depth up, eases off, switches method, orbits the view and cuts the skin
+// away, opens the settings (one step of the MSDS, applied) and the service screen.
+Script trainer(const config::CaseScan& scan) {
+  const Eigen::Vector3d middle =
+      (Eigen::Vector3d(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]) +
+       Eigen::Vector3d(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2])) /
+      2;
+  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
+  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
+  const auto at = [](double seconds) { return static_cast<hal::TimestampUs>(seconds * 1e6); };
+  Script script;
+  script.keyframes = {
+      {at(0.0), middle - 5.0 * down, level, ""}, {at(0.5), middle, level, ""},
+      {at(1.0), middle, level, "rest"},          {at(2.6), middle, level, "pressed"},
+      {at(3.7), middle, level, "measured"},      {at(6.0), middle, level, "released"},
+      {at(7.6), middle, level, "orbited"},       {at(9.3), middle, level, "settings"},
+      {at(10.0), middle, level, "service"},      {at(10.4), middle, level, ""}};
+  const auto tap = [&](double seconds, std::string widget) {
+    UiEvent e;
+    e.time_us = at(seconds);
+    e.widget = std::move(widget);
+    script.ui.push_back(e);
+  };
+  // Four presses of 2 mm: 8 mm, the sweep-press script's depth.
+  for (double t : {1.2, 1.4, 1.6, 1.8}) tap(t, "PRESS +");
+  tap(2.8, "FREEZE");
+  tap(3.0, "CALIPER");
+  // 10 mm from the image's left edge, 10 and 30 mm deep: 20 mm apart.
+  for (const auto& [t, depth] : {std::pair{3.2, 10.0f}, std::pair{3.4, 30.0f}}) {
+    UiEvent e;
+    e.time_us = at(t);
+    e.kind = UiEvent::Kind::kTapImage;
+    e.image_mm = {10.0f, depth};
+    script.ui.push_back(e);
+  }
+  tap(3.8, "SAVE");
+  tap(4.0, "FREEZE");
+  tap(4.2, "GAIN +");
+  tap(4.4, "DEPTH +");
+  for (double t : {4.6, 4.8, 5.0, 5.2}) tap(t, "PRESS -");
+  tap(6.2, "METHOD");
+  tap(6.5, "MSDS");
+  UiEvent drag;
+  drag.time_us = at(6.8);
+  drag.kind = UiEvent::Kind::kDragView;
+  drag.drag_px = {-120.0f, 40.0f};
+  script.ui.push_back(drag);
+  tap(7.2, "SKIN");
+  tap(7.8, "SETTINGS");
+  tap(8.0, "TAB MSDS");
+  tap(8.2, "msds.steps_per_frame +");
+  tap(8.5, "APPLY");
+  // A time step stepped below zero: the schema refuses it and the dialog says why.
+  tap(8.7, "SETTINGS");
+  tap(8.8, "TAB MSDS");
+  for (double t : {8.9, 8.95, 9.0, 9.05, 9.1, 9.15}) tap(t, "msds.time_step_s -");
+  tap(9.2, "APPLY");
+  tap(9.5, "CLOSE##SETTINGS CLOSE");
+  tap(9.7, "SERVICE");
+  return script;
+}
+
 // The screen as the frame loop's renderer.
+// The screen as the frame loop's renderer: the scene, then the trainer's controls over it.
 class DisplayFrameRenderer final : public FrameRenderer {
  public:
-  DisplayFrameRenderer(render::Display& display, render::SceneRenderer& renderer)
-      : display_(display), renderer_(renderer) {}
+  DisplayFrameRenderer(render::Display& display, render::SceneRenderer& renderer,
+                       render::TrainerUi& ui)
+      : display_(display), renderer_(renderer), ui_(ui) {}
   void render(const Session& session, std::int64_t frame_index) override {
     display_.begin_frame();
     render::FrameInput input = session.frame_input(frame_index);
     input.stats = stats;
+    input.view = ui_.view_options();
     renderer_.draw(input);
+    actions = ui_.frame(input, renderer_.layout(), model, pointer, frame_seconds);
+    pointer = {};
     display_.end_frame();
   }
-  render::StatsView stats;  // the overlay, refreshed by the run before each frame
+  render::StatsView stats;     // the overlay, refreshed by the run before each frame
+  render::TrainerModel model;  // likewise, the controls' state
+  std::span<const hal::PointerEvent> pointer;  // this frame's touches
+  float frame_seconds = 0.0f;
+  render::TrainerActions actions;  // what the trainee asked for in the last frame drawn
 
  private:
   render::Display& display_;
   render::SceneRenderer& renderer_;
+  render::TrainerUi& ui_;
 };
+
+// The live methods as the method list shows them.
+constexpr std::string_view kMethodNames[] = {"exact FEM", "PCG FEM", "corotational FEM", "MSDS",
+                                             "MSDS implicit"};
+static_assert(std::size(kMethodNames) == std::size(kLiveMethods));
 
 // Whether two statuses of the probe's source tell the same trouble: equal but for their
 // numbers ("no orientation for 12 ms" and "... 29 ms"), so the log gets a line per change, not
@@ -151,14 +234,60 @@ Script make_script(const HeadlessRunOptions& options, std::span<const TissueCase
   const double depth_mm = tissues.front().settings.probe.depth_mm;
   if (options.script == "sweep-press") return sweep_press(scan, depth_mm);
   if (options.script == "compare-methods") return compare_methods(scan);
+  if (options.script == "trainer") return trainer(scan);
   if (options.script == "soak") {
     std::vector<SoakCase> cases;
     for (const auto& t : tissues) cases.push_back({t.settings.scan, t.settings.probe.depth_mm});
     return soak_script(cases, options.soak_seconds, options.soak_seed);
   }
   throw std::invalid_argument("unknown script '" + options.script +
-                              "'; available: sweep-press, compare-methods, soak");
+                              "'; available: sweep-press, compare-methods, trainer, soak");
 }
+
+// The service screen's lines: what a bring-up engineer checks first. Rebuilt a few times a
+// second (it allocates), not every frame.
+struct ServiceScreen {
+  std::vector<std::string> values;
+  std::vector<render::ServiceLine> lines;
+
+  void refresh(std::string_view display, hal::PoseSource& probe, std::string_view probe_status,
+               const Session& session, std::string_view case_name,
+               const sched::Scheduler& scheduler,
+               const std::function<std::int64_t()>& resident_memory_kib) {
+    static constexpr std::string_view kLabels[] = {
+        "DISPLAY", "PROBE SOURCE",    "PROBE STATUS",    "PROBE AT (MM)",   "CASE",
+        "METHOD",  "FRAME P50 / P99", "DEADLINE MISSES", "SKIPPED B-SCANS", "MEMORY"};
+    values.assign(std::size(kLabels), std::string());
+    char text[96];
+    values[0] = display;
+    values[1] = probe.name();
+    values[2] = probe_status.empty() ? std::string("ok") : std::string(probe_status);
+    const render::FrameInput shown = session.frame_input(0);
+    const auto& m = shown.probe.probe_to_patient;
+    std::snprintf(text, sizeof text, "%.1f  %.1f  %.1f", static_cast<double>(m[12]),
+                  static_cast<double>(m[13]), static_cast<double>(m[14]));
+    values[3] = text;
+    values[4] = case_name;
+    values[5] = session.method_name();
+    const sched::FrameTimeStats& frames = scheduler.frame_stats();
+    std::snprintf(text, sizeof text, "%.1f / %.1f MS",
+                  static_cast<double>(frames.percentile_us(50.0)) * 1e-3,
+                  static_cast<double>(frames.percentile_us(99.0)) * 1e-3);
+    values[6] = text;
+    values[7] = std::to_string(frames.deadline_misses());
+    std::int64_t bscan_slips = 0;
+    for (const auto& t : scheduler.task_stats()) {
+      if (std::string_view(t.name) == FrameLoop::kBscan) bscan_slips = t.slips;
+    }
+    values[8] = std::to_string(bscan_slips);
+    values[9] = resident_memory_kib ? std::to_string(resident_memory_kib() / 1024) + " MIB"
+                                    : std::string("-");
+    lines.clear();
+    for (std::size_t i = 0; i < values.size(); ++i) lines.push_back({kLabels[i], values[i], true});
+    lines[2].ok = probe_status.empty();
+    lines[7].ok = frames.deadline_misses() == 0;
+  }
+};
 
 }  // namespace
 
@@ -177,10 +306,11 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   if (!options.method && !method_runs_on(tissue, settings.sim.method)) {
     settings.sim.method = first_method_for(tissue);
   }
-  Script script = settings.probe.source == hal::ProbeSourceKind::kScripted &&
-                          !settings.probe.motion_file.empty()
-                      ? Script{drivers::sim_probe::read_motion_file(settings.probe.motion_file), {}}
-                      : make_script(options, tissues);
+  Script script =
+      settings.probe.source == hal::ProbeSourceKind::kScripted &&
+              !settings.probe.motion_file.empty()
+          ? Script{drivers::sim_probe::read_motion_file(settings.probe.motion_file), {}, {}}
+          : make_script(options, tissues);
   // Virtual time: frame i shows the script at i budgets, however long the machine takes, so
   // the session (and its screenshots) are the same on every run.
   hal::ManualClock script_clock;
@@ -215,10 +345,12 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       make_display(settings.display, display_name);
   render::Display& display = *display_owner;
   render::SceneRenderer renderer(display);
+  render::TrainerUi ui(display);
   std::filesystem::create_directories(options.out_dir);  // only once everything could start
-  // Restarted on every pick from the case list.
+  // Restarted on every pick from the case list and every applied settings change.
   auto session_owner = std::make_unique<Session>(tissue, settings, clock, jobs);
   Session* session = session_owner.get();
+  std::size_t case_index = 0;
 
   RunReport report;
   report.case_name = tissue.settings.name;
@@ -234,11 +366,115 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.slicer = session->slicer_name();
   report.probe_source = probe_source_key(settings.probe.source);
   const std::int64_t budget_us = settings.frame.budget_us;
-  DisplayFrameRenderer frame_renderer(display, renderer);
+  DisplayFrameRenderer frame_renderer(display, renderer, ui);
+  frame_renderer.frame_seconds = static_cast<float>(budget_us) * 1e-6f;
   FrameLoop loop(*session, frame_renderer, clock, settings.frame);
+
+  // The controls' model: names and settings fields live here, the spans point at them.
+  std::vector<std::string_view> case_names;
+  for (const auto& t : tissues) case_names.push_back(t.settings.name);
+  std::vector<render::SettingField> fields = settings_fields(settings);
+  std::vector<float> tgc_db(imaging::kTgcSliders, 0.0f);
+  ServiceScreen service;
+  render::TrainerModel& model = frame_renderer.model;
+  model.case_names = case_names;
+  model.method_names = kMethodNames;
+  model.settings = fields;
+  model.tgc_db = tgc_db;
+
+  const auto save_image = [&] {
+    report.saved_images += 1;
+    const std::string name = "saved-" + std::to_string(report.saved_images) + ".png";
+    render::write_png_grey(options.out_dir / name, session->bscan(), session->bscan_width_px(),
+                           session->bscan_height_px(), session->image_record());
+  };
+  // The old session goes first: a kiosk holds one case's engines at a time.
+  const auto restart = [&](std::size_t index, std::optional<sim::EngineKind> method,
+                           std::optional<double> depth_mm) {
+    config::AppSettings case_settings = settings;
+    case_settings.sim.method = method.value_or(session->method());
+    const TissueCase& next = tissues.at(index);
+    if (!method_runs_on(next, case_settings.sim.method)) {
+      case_settings.sim.method = first_method_for(next);
+      report.method_switches_refused += 1;
+    }
+    session_owner.reset();
+    session_owner = std::make_unique<Session>(next, case_settings, clock, jobs);
+    session = session_owner.get();
+    case_index = index;
+    loop.switch_session(*session);
+    if (depth_mm) {
+      BscanControls controls = session->controls();
+      controls.depth_mm = *depth_mm;
+      session->set_controls(controls);
+    }
+  };
+  const auto switch_method = [&](sim::EngineKind method) {
+    if (!method_runs_on(session->tissue(), method)) {
+      report.method_switches_refused += 1;
+      return;
+    }
+    if (method != session->method()) report.method_switches += 1;
+    session->switch_method(method);
+  };
+  const auto set_controls = [&](const BscanControls& controls) {
+    try {
+      session->set_controls(controls);
+    } catch (const std::invalid_argument&) {
+      report.controls.refused_values += 1;  // a step past the control's range: nothing changes
+    }
+  };
+  // What the trainee asked for on screen in the frame just drawn.
+  const auto apply_actions = [&](const render::TrainerActions& a) {
+    BscanControls controls = session->controls();
+    bool changed = false;
+    if (a.toggle_freeze) controls.frozen = !controls.frozen, changed = true;
+    if (a.gain_db) controls.gain_db = *a.gain_db, changed = true;
+    if (a.depth_mm) controls.depth_mm = *a.depth_mm, changed = true;
+    if (a.tgc_slider >= 0 && a.tgc_slider < imaging::kTgcSliders) {
+      controls.tgc_db[static_cast<std::size_t>(a.tgc_slider)] = a.tgc_db;
+      changed = true;
+    }
+    if (a.compression_steps != 0) {
+      constexpr double kCompressionStepMm = 2.0;
+      controls.compression_mm =
+          std::clamp(controls.compression_mm + kCompressionStepMm * a.compression_steps, 0.0, 20.0);
+      changed = true;
+    }
+    if (changed) set_controls(controls);
+    if (a.save) save_image();
+    if (a.method_index >= 0 && a.method_index < static_cast<int>(std::size(kLiveMethods))) {
+      switch_method(kLiveMethods[static_cast<std::size_t>(a.method_index)]);
+    }
+    if (a.case_index >= 0 && static_cast<std::size_t>(a.case_index) < tissues.size()) {
+      restart(static_cast<std::size_t>(a.case_index), std::nullopt, std::nullopt);
+      report.case_switches += 1;
+    }
+    if (!a.settings_applied.empty()) {
+      auto result = apply_settings_fields(settings, a.settings_applied);
+      if (auto* refusal = std::get_if<std::string>(&result)) {
+        ui.settings_refused(*refusal);
+        report.controls.settings_refused += 1;
+        report.controls.last_refusal = *refusal;
+      } else {
+        const BscanControls kept = session->controls();
+        const sim::EngineKind method = session->method();
+        settings = std::get<config::AppSettings>(std::move(result));
+        fields = settings_fields(settings);
+        model.settings = fields;
+        // The simulation starts again with the new numbers; the scanner keeps its settings.
+        restart(case_index, method, std::nullopt);
+        set_controls(kept);
+        ui.settings_accepted();
+        report.controls.settings_applied += 1;
+      }
+    }
+  };
 
   std::size_t next_marker = 0;
   std::size_t next_control = 0;
+  ScriptedTouch touch(script.ui);
+  std::vector<hal::PointerEvent> pointer_events;
   render::RgbaImage screen;
 
   const std::int64_t frames_per_second = std::max<std::int64_t>(1, 1'000'000 / budget_us);
@@ -265,41 +501,40 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     while (next_control < script.controls.size() && script.controls[next_control].time_us <= now) {
       const ControlEvent& event = script.controls[next_control];
       if (event.save) {
-        report.saved_images += 1;
-        const std::string name = "saved-" + std::to_string(report.saved_images) + ".png";
-        render::write_png_grey(options.out_dir / name, session->bscan(), session->bscan_width_px(),
-                               session->bscan_height_px(), session->image_record());
+        save_image();
       } else if (event.case_index) {
-        // The old session goes first: a kiosk holds one case's engines at a time.
-        config::AppSettings case_settings = settings;
-        case_settings.sim.method = event.method.value_or(session->method());
-        const TissueCase& next = tissues.at(static_cast<std::size_t>(*event.case_index));
-        if (!method_runs_on(next, case_settings.sim.method)) {
-          case_settings.sim.method = first_method_for(next);
-          report.method_switches_refused += 1;
-        }
-        session_owner.reset();
-        session_owner = std::make_unique<Session>(next, case_settings, clock, jobs);
-        session = session_owner.get();
-        loop.switch_session(*session);
-        BscanControls controls = session->controls();
-        controls.depth_mm = event.depth_mm;
-        session->set_controls(controls);
+        restart(static_cast<std::size_t>(*event.case_index), event.method, event.depth_mm);
         report.case_switches += 1;
       } else if (event.method) {
-        if (!method_runs_on(session->tissue(), *event.method)) {
-          report.method_switches_refused += 1;
-        } else {
-          if (*event.method != session->method()) report.method_switches += 1;
-          session->switch_method(*event.method);
-        }
+        switch_method(*event.method);
       } else {
         BscanControls controls = session->controls();
         controls.frozen = event.frozen;
         controls.depth_mm = event.depth_mm;
-        session->set_controls(controls);
+        set_controls(controls);
       }
       ++next_control;
+    }
+    // The touches: the script's, placed on the screen as last drawn, and the touch screen's.
+    {
+      const render::FrameInput shown = session->frame_input(frame);
+      const auto touches = touch.advance(frame, now, ui, renderer.layout(), shown.bscan.width_mm,
+                                         shown.bscan.depth_mm);
+      pointer_events.assign(touches.begin(), touches.end());
+      if (options.pointer != nullptr) {
+        const auto touched = options.pointer->poll();
+        pointer_events.insert(pointer_events.end(), touched.begin(), touched.end());
+      }
+      frame_renderer.pointer = pointer_events;
+      const BscanControls& c = session->controls();
+      model.gain_db = static_cast<float>(c.gain_db);
+      model.depth_mm = static_cast<float>(c.depth_mm);
+      model.frozen = c.frozen;
+      model.compression_mm = static_cast<float>(c.compression_mm);
+      for (std::size_t i = 0; i < tgc_db.size(); ++i) tgc_db[i] = static_cast<float>(c.tgc_db[i]);
+      model.case_index = static_cast<int>(case_index);
+      model.method_index = static_cast<int>(std::ranges::find(kLiveMethods, session->method()) -
+                                            std::begin(kLiveMethods));
     }
     const std::string method_key(sim::engine_key(session->method()));
     // A device's samples carry the monotonic clock's time; the script's and recordings' the
@@ -339,8 +574,17 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       stats.probe_source = probe.pose->name();
       stats.probe_ok = probe_status.empty();
     }
+    if (frame % 30 == 0) {
+      service.refresh(display_name, *probe.pose, probe_status, *session,
+                      tissues[case_index].settings.name, loop.scheduler(),
+                      options.resident_memory_kib);
+      model.service = service.lines;
+    }
     const sched::TickReport tick =
         loop.run_frame(sample, sample ? source_now - sample->timestamp_us : 0);
+    apply_actions(frame_renderer.actions);
+    frame_renderer.actions = {};
+    if (ui.calipers().points == 2) report.controls.caliper_mm = ui.calipers().distance_mm();
     auto by_method = std::ranges::find(report.frame_by_method, method_key,
                                        [](const auto& entry) { return entry.first; });
     if (by_method == report.frame_by_method.end()) {
@@ -378,6 +622,13 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       snap.frame = frame;
       snap.contact_force_n = outcome.sim.contact_force_n;
       snap.method = std::string(sim::engine_key(session->method()));
+      snap.skin_dent_mm = session->skin_dent_mm();
+      const BscanControls& c = session->controls();
+      snap.compression_mm = c.compression_mm;
+      snap.depth_mm = c.depth_mm;
+      snap.gain_db = c.gain_db;
+      snap.frozen = c.frozen;
+      snap.caliper_mm = ui.calipers().points == 2 ? ui.calipers().distance_mm() : 0.0;
       snap.bscan_png = "bscan-" + snap.marker + ".png";
       snap.screen_png = "screen-" + snap.marker + ".png";
       render::write_png_grey(options.out_dir / snap.bscan_png, session->bscan(),
@@ -390,6 +641,9 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     if (!real_time) script_clock.advance_us(budget_us);
   }
 
+  report.controls.taps = touch.delivered();
+  report.controls.taps_missed = touch.missed();
+  report.controls.missed = touch.missed_labels();
   report.frame = loop.scheduler().frame_stats();
   report.probe_to_photon = loop.probe_to_photon();
   report.tasks.assign(loop.scheduler().task_stats().begin(), loop.scheduler().task_stats().end());

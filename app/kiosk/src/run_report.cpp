@@ -78,6 +78,17 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"status_frames\": " << r.probe_status_frames
       << ", \"last_status\": " << quoted(r.probe_last_status) << "},\n"
       << "  \"saved_images\": " << r.saved_images << ",\n"
+      << "  \"controls\": {\"taps\": " << r.controls.taps
+      << ", \"taps_missed\": " << r.controls.taps_missed << ", \"missed\": [";
+  for (std::size_t i = 0; i < r.controls.missed.size(); ++i) {
+    out << (i ? ", " : "") << quoted(r.controls.missed[i]);
+  }
+  out << "]"
+      << ", \"settings_applied\": " << r.controls.settings_applied
+      << ", \"settings_refused\": " << r.controls.settings_refused
+      << ", \"last_refusal\": " << quoted(r.controls.last_refusal)
+      << ", \"refused_values\": " << r.controls.refused_values
+      << ", \"caliper_mm\": " << r.controls.caliper_mm << "},\n"
       << "  \"probe_to_photon\": ";
   write_stats(out, r.probe_to_photon);
   out << ",\n  \"frame_time\": ";
@@ -104,7 +115,11 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
     out << (i ? ",\n" : "\n") << "    {\"marker\": " << quoted(s.marker)
         << ", \"frame\": " << s.frame << ", \"bscan\": " << quoted(s.bscan_png)
         << ", \"screen\": " << quoted(s.screen_png) << ", \"method\": " << quoted(s.method)
-        << ", \"contact_force_n\": " << s.contact_force_n << "}";
+        << ", \"contact_force_n\": " << s.contact_force_n
+        << ", \"skin_dent_mm\": " << s.skin_dent_mm << ", \"compression_mm\": " << s.compression_mm
+        << ", \"caliper_mm\": " << s.caliper_mm << ", \"depth_mm\": " << s.depth_mm
+        << ", \"gain_db\": " << s.gain_db << ", \"frozen\": " << (s.frozen ? "true" : "false")
+        << "}";
   }
   out << "\n  ],\n  \"memory\": {\"baseline_frame\": " << r.memory_baseline_frame
       << ", \"growth_kib\": " << r.memory_growth_kib() << ", \"samples_kib\": [";

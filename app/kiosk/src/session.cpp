@@ -168,6 +168,7 @@ void Session::set_controls(const BscanControls& c) {
   for (double t : c.tgc_db) check_range("tgc_db", t, -30.0, 30.0);
   check_range("dynamic_range_db", c.dynamic_range_db, 10.0, 100.0);
   check_range("depth_mm", c.depth_mm, 10.0, 300.0);
+  check_range("compression_mm", c.compression_mm, 0.0, 20.0);
   controls_ = c;
   probe_.depth_mm = c.depth_mm;
   rebuild_image_pipeline();
@@ -184,9 +185,14 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
                                hal::TimestampUs deadline_us) {
   FrameOutcome outcome;
   if (sample && sample->health == hal::PoseHealth::kOk && hal::is_valid(*sample)) {
-    pose_ = sample;
+    tracked_pose_ = sample;
   } else {
     outcome.pose_rejected = true;
+  }
+  if (tracked_pose_) {
+    pose_ = tracked_pose_;
+    pose_->position_mm +=
+        controls_.compression_mm * (pose_->orientation * Eigen::Vector3d::UnitZ());
   }
 
   const hal::TimestampUs t0 = clock_.now_us();
@@ -333,6 +339,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.bscan.depth_mm = static_cast<float>(extent.depth_mm());
   frame.bscan.in_contact = image_shows_tissue_;
   frame.bscan.frozen = controls_.frozen;
+  frame.bscan.gain_db = static_cast<float>(controls_.gain_db);
   frame.probe_status = probe_status_;
 
   frame.mesh.node_positions_mm = node_positions_;
@@ -388,6 +395,7 @@ std::vector<render::PngText> Session::image_record() const {
       {"Depth mm", number(controls_.depth_mm)},
       {"Dynamic range dB", number(controls_.dynamic_range_db)},
       {"Frozen", controls_.frozen ? "yes" : "no"},
+      {"Compression mm", number(controls_.compression_mm)},
   };
   std::string tgc;
   for (double t : controls_.tgc_db) tgc += (tgc.empty() ? "" : " ") + number(t);

@@ -27,6 +27,10 @@ TEST(SceneLayout, SplitsTheScreenAndKeepsTheImageAspect) {
       const double aspect = static_cast<double>(l.bscan_image.width_px) / l.bscan_image.height_px;
       EXPECT_NEAR(aspect, width_mm / depth_mm, 1.5 / l.bscan_image.height_px * aspect + 0.02);
       EXPECT_EQ(l.depth_scale.x_px + l.depth_scale.width_px, l.bscan_image.x_px);
+      // The trainer's controls along the panel's foot, clear of the image and its scale.
+      EXPECT_TRUE(inside(l.controls, l.bscan_panel));
+      EXPECT_GT(l.controls.y_px, l.bscan_image.y_px + l.bscan_image.height_px);
+      EXPECT_TRUE(inside(l.header_controls, l.header));
     }
   }
 }

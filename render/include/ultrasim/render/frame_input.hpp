@@ -19,6 +19,7 @@ struct BscanView {
   float depth_mm = 0.0f;   // axial extent of the image
   bool in_contact = true;  // false: the probe is off the skin, the panel shows "no contact"
   bool frozen = false;
+  float gain_db = 0.0f;  // the scanner's gain, read out on the panel
 };
 
 struct MeshView {
@@ -33,6 +34,7 @@ struct SurfaceView {
   std::span<const float> normals;            // x,y,z per vertex, unit; empty: flat shading
   std::span<const std::uint32_t> triangles;  // 3 vertex indices each, counter-clockwise outside
   std::array<float, 4> rgba{0.8f, 0.2f, 0.2f, 1.0f};  // colour; alpha < 1: translucent
+  bool skin = false;  // the body's skin: hidden when the trainee cuts it away (ViewOptions)
 };
 
 struct ProbeView {
@@ -60,6 +62,15 @@ struct StatsView {
   bool probe_ok = true;           // the source has nothing to say (FrameInput::probe_status)
 };
 
+// How the trainee looks at the 3D view (render::TrainerUi's orbit, zoom and toggles).
+struct ViewOptions {
+  float azimuth_offset_deg = 0.0f;    // turned from the style's azimuth
+  float elevation_offset_deg = 0.0f;  // lifted from the style's elevation
+  float zoom = 1.0f;                  // > 1 closer; the framed scene at 1
+  bool show_mesh = true;              // the tet mesh's wireframe
+  bool show_skin = true;              // false: the skin cut away, the tissue bare
+};
+
 struct FrameInput {
   BscanView bscan;
   MeshView mesh;
@@ -72,6 +83,7 @@ struct FrameInput {
   // B-scan panel; empty while the tracker is well.
   std::string_view probe_status;
   StatsView stats;
+  ViewOptions view;
 };
 
 }  // namespace ultrasim::render

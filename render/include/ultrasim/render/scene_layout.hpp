@@ -20,12 +20,14 @@ struct PixelRect {
 // Where each part of the kiosk screen goes. The same numbers drive drawing, tests and, later,
 // touch hit-testing.
 struct ScreenLayout {
-  PixelRect header;       // title bar across the top
-  PixelRect view_3d;      // left panel: tissue mesh, probe, image plane, collider
-  PixelRect bscan_panel;  // right panel, black, around the B-scan and its scales
-  PixelRect bscan_image;  // the B-scan itself, aspect-correct (width_mm : depth_mm)
-  PixelRect depth_scale;  // strip left of bscan_image with depth ticks and cm labels
-  int ui_scale = 1;       // integer pixel size of font dots and thick lines (1 up to 539 px high)
+  PixelRect header;           // title bar across the top
+  PixelRect header_controls;  // the title bar between the product name and the scan state
+  PixelRect view_3d;          // left panel: tissue mesh, probe, image plane, collider
+  PixelRect bscan_panel;      // right panel, black, around the B-scan and its scales
+  PixelRect bscan_image;      // the B-scan itself, aspect-correct (width_mm : depth_mm)
+  PixelRect depth_scale;      // strip left of bscan_image with depth ticks and cm labels
+  PixelRect controls;         // the trainer's controls, along the foot of the B-scan panel
+  int ui_scale = 1;  // integer pixel size of font dots and thick lines (1 up to 539 px high)
 };
 
 // Lays out a width_px × height_px screen whose B-scan covers image_width_mm × image_depth_mm

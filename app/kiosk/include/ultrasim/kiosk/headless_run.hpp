@@ -10,6 +10,7 @@
 
 #include "ultrasim/hal/clock.hpp"
 #include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/hal/pointer_input.hpp"
 #include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::kiosk {
@@ -43,6 +44,9 @@ struct HeadlessRunOptions {
   // Where the run says what happens to the probe's source (a line when its trouble starts,
   // changes or clears, with the run's time); unset: nowhere.
   std::function<void(const std::string&)> log_line;
+  // The trainer's touch screen or mouse (drivers/evdev), for the kiosk; null: the script's
+  // touches only (a test run) or none.
+  hal::PointerSource* pointer = nullptr;
 };
 
 // Runs the kiosk without a screen: a scripted session (the probe's motion and the scanner's

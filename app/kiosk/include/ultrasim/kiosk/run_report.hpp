@@ -19,6 +19,26 @@ struct Snapshot {
   std::string screen_png;
   double contact_force_n = 0.0;
   std::string method;  // deformation method shown
+  // What the trainee sees measured: the skin's dent under the probe, the compression buttons'
+  // press and the calipers' readout (0: not placed).
+  double skin_dent_mm = 0.0;
+  double compression_mm = 0.0;
+  double caliper_mm = 0.0;
+  double depth_mm = 0.0;
+  double gain_db = 0.0;
+  bool frozen = false;
+};
+
+// What the trainer's controls did (render::TrainerUi): touches, and what they changed.
+struct ControlsSummary {
+  std::int64_t taps = 0;            // scripted touches delivered
+  std::int64_t taps_missed = 0;     // scripted taps on a control that was not on screen
+  std::vector<std::string> missed;  // their labels (the first ten)
+  std::int64_t settings_applied = 0;
+  std::int64_t settings_refused = 0;
+  std::string last_refusal;         // the schema's words, as the dialog showed them
+  double caliper_mm = 0.0;          // the last readout with both points placed
+  std::int64_t refused_values = 0;  // a step past a control's range (nothing changed)
 };
 
 // What stitched frames did (frames a stitched method ran).
@@ -51,6 +71,7 @@ struct RunReport {
   std::int64_t probe_status_frames = 0;
   std::string probe_last_status;
   std::int64_t saved_images = 0;  // the save control's PNGs (saved-N.png)
+  ControlsSummary controls;
   // From each accepted pose's measurement to its frame's presentation (FrameLoop).
   sched::FrameTimeStats probe_to_photon;
   std::int64_t frames_in_contact = 0;

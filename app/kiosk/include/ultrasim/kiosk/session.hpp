@@ -47,6 +47,9 @@ struct BscanControls {
   double dynamic_range_db = imaging::kRecordedDynamicRangeDb;  // [10, 100]
   double depth_mm = 40.0;                                      // [10, 300]
   bool frozen = false;  // image held; the tissue still follows the probe
+  // The compression buttons: the probe pressed this far along its beam beyond where the tracker
+  // puts it, as the published simulator's buttons did for a probe without a force sensor.
+  double compression_mm = 0.0;  // [0, 20]
 };
 
 // Whether `method` can run on the case: on a case split into sub-volumes ([mesh] sub_volumes),
@@ -127,6 +130,9 @@ class Session {
     return engine_->deformed_positions_mm();
   }
 
+  // How deep the skin is dented under the probe now, mm (0 at rest).
+  double skin_dent_mm() const { return skin_.surface().max_dent_mm(); }
+
   // The probe as the tissue feels it, at the last good pose (nullopt before any).
   std::optional<sim::ProbeCollider> probe_collider() const;
 
@@ -153,7 +159,8 @@ class Session {
   std::vector<std::uint8_t> acquired_;                        // scan-line samples
   std::optional<imaging::FastSlicer> fast_slicer_;            // raster grids, slicer = fast
   std::optional<imaging::PublishedSlicer> published_slicer_;  // raster grids, slicer = published
-  std::optional<hal::PoseSample> pose_;                       // last good pose
+  std::optional<hal::PoseSample> tracked_pose_;               // last good sample
+  std::optional<hal::PoseSample> pose_;  // tracked_pose_ pressed in by controls_.compression_mm
   // Where the method last took the probe, and the face's depth (z) at the press it refused
   // since, with the frames since that refusal.
   std::optional<sim::ProbeCollider> accepted_collider_;
