@@ -34,6 +34,9 @@ TableSchema<render::DisplaySettings> display_schema() {
               "kms: the mode's refresh rate; 0: the fastest at that size."));
   t.add(field("kms_legacy", &S::kms_legacy, Boolean{},
               "kms: legacy modeset and page flips even where atomic commits work."));
+  t.add(field("pointer_device", &S::pointer_device, Text{},
+              "The trainer's touch screen or mouse for the on-screen controls, an evdev node "
+              "(/dev/input/eventN); empty: none."));
   return t;
 }
 

@@ -236,6 +236,19 @@ void TissueView::build_geometry(const FrameInput& frame) {
   }
 }
 
+std::span<const std::uint32_t> lines_for_screen(const MeshView& mesh, const SceneCamera& camera,
+                                                const SceneStyle& style, int viewport_height_px) {
+  // Pixels per mm at the framed centre.
+  constexpr float kDegToRad = std::numbers::pi_v<float> / 180.0f;
+  const float half_fov = 0.5f * std::clamp(style.camera_fov_y_deg, 5.0f, 120.0f) * kDegToRad;
+  const float px_per_mm = static_cast<float>(viewport_height_px) /
+                          (2.0f * std::max(camera.target_distance_mm, 1e-3f) * std::tan(half_fov));
+  for (const LineLevel& level : mesh.line_levels) {
+    if (level.spacing_mm * px_per_mm >= kMinLineSpacingPx) return level.line_indices;
+  }
+  return mesh.line_levels.empty() ? mesh.line_indices : mesh.line_levels.back().line_indices;
+}
+
 void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int screen_width_px,
                       int screen_height_px, const Programs& programs, const BscanTexture& texture,
                       bool show_image, TexturedQuads& quads) {
@@ -264,7 +277,9 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
 
   // Mesh lines first: the opaque bulk of the scene (and on a software rasteriser much of its
   // cost: not even uploaded when the trainee hides it).
-  if (const GLsizei index_count = view.show_mesh ? upload_mesh(frame.mesh) : 0; index_count > 0) {
+  MeshView mesh = frame.mesh;
+  mesh.line_indices = lines_for_screen(frame.mesh, camera, orbit, r.height_px);
+  if (const GLsizei index_count = view.show_mesh ? upload_mesh(mesh) : 0; index_count > 0) {
     glUseProgram(programs.mesh.id);
     glUniformMatrix4fv(programs.mesh.u_view, 1, GL_FALSE, camera.view.data());
     glUniformMatrix4fv(programs.mesh.u_projection, 1, GL_FALSE, camera.projection.data());

@@ -9,6 +9,7 @@
 #include "../unit/render/synthetic_scene.hpp"
 #include "ultrasim/render/offscreen_display.hpp"
 #include "ultrasim/render/scene_renderer.hpp"
+#include "ultrasim/render/trainer_ui.hpp"
 
 namespace {
 
@@ -70,7 +71,47 @@ void configurations(benchmark::internal::Benchmark* b) {
   b->Unit(benchmark::kMillisecond)->UseRealTime();
 }
 
+// What the trainer's screen adds and what the trainee's toggles save, against the plain draw in
+// the same run: range(0) the controls (render::TrainerUi) drawn over the scene, range(1) the
+// mesh's wireframe shown (with 15,000 surface triangles).
+void BM_DrawParts(benchmark::State& state) {
+  OffscreenDisplay display(DisplaySettings{});  // 1280 × 720
+  SceneRenderer renderer(display);
+  TrainerUi ui(display);
+  testing::SyntheticScene scene = testing::make_synthetic_scene();
+  testing::add_synthetic_structures(scene, 15000);
+  const bool controls = state.range(0) != 0;
+  scene.frame.view.show_mesh = state.range(1) != 0;
+  const float tgc[8] = {};
+  const std::string_view names[] = {"default-upper-arm"};
+  TrainerModel model;
+  model.tgc_db = tgc;
+  model.case_names = names;
+  model.method_names = names;
+  const auto draw = [&] {
+    display.begin_frame();
+    renderer.draw(scene.frame);
+    if (controls) benchmark::DoNotOptimize(ui.frame(scene.frame, renderer.layout(), model, {}));
+    display.end_frame();
+  };
+  draw();
+  for (auto _ : state) {
+    ++scene.frame.frame_index;
+    draw();
+    glFinish();
+  }
+  state.counters["fps"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 BENCHMARK(BM_Draw)->Apply(configurations);
+BENCHMARK(BM_DrawParts)
+    ->ArgNames({"controls", "mesh"})
+    ->Args({0, 1})
+    ->Args({1, 1})
+    ->Args({1, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_Readback)
     ->Args({0, 0})
     ->ArgNames({"surface_tris", "msaa"})

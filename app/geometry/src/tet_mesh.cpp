@@ -133,4 +133,34 @@ std::vector<std::array<std::int32_t, 2>> unique_edges(
   return edges;
 }
 
+std::vector<std::array<std::int32_t, 2>> grid_surface_lines(const GridSpec& grid, int stride) {
+  stride = std::max(stride, 1);
+  const Eigen::Vector3i n = grid.nodes;
+  const auto on_level = [stride](int v, int count) { return v % stride == 0 || v == count - 1; };
+  const auto on_face = [](int v, int count) { return v == 0 || v == count - 1; };
+  std::vector<std::array<std::int32_t, 2>> lines;
+  for (int k = 0; k < n.z(); ++k) {
+    for (int j = 0; j < n.y(); ++j) {
+      for (int i = 0; i < n.x(); ++i) {
+        const int here = grid.node_index(i, j, k);
+        // A segment along one axis lies on a face when one of the other two coordinates is on
+        // the box's boundary, and on a drawn grid line when the remaining one is on the level.
+        if (i + 1 < n.x() && ((on_face(j, n.y()) && on_level(k, n.z())) ||
+                              (on_face(k, n.z()) && on_level(j, n.y())))) {
+          lines.push_back({here, grid.node_index(i + 1, j, k)});
+        }
+        if (j + 1 < n.y() && ((on_face(i, n.x()) && on_level(k, n.z())) ||
+                              (on_face(k, n.z()) && on_level(i, n.x())))) {
+          lines.push_back({here, grid.node_index(i, j + 1, k)});
+        }
+        if (k + 1 < n.z() && ((on_face(i, n.x()) && on_level(j, n.y())) ||
+                              (on_face(j, n.y()) && on_level(i, n.x())))) {
+          lines.push_back({here, grid.node_index(i, j, k + 1)});
+        }
+      }
+    }
+  }
+  return lines;
+}
+
 }  // namespace ultrasim::geometry

@@ -13,6 +13,7 @@
 #include "ultrasim/config/app_settings.hpp"
 #include "ultrasim/drivers/sim_probe/motion_file.hpp"
 #include "ultrasim/drivers/sim_probe/scripted_probe.hpp"
+#include "ultrasim/drivers/touch/evdev_pointer.hpp"
 #include "ultrasim/kiosk/frame_loop.hpp"
 #include "ultrasim/kiosk/probe_sources.hpp"
 #include "ultrasim/kiosk/run_report.hpp"
@@ -346,6 +347,14 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   render::Display& display = *display_owner;
   render::SceneRenderer renderer(display);
   render::TrainerUi ui(display);
+  // The touch screen or mouse the settings name, else whatever the caller gives (a test's).
+  std::unique_ptr<hal::PointerSource> pointer_owner;
+  hal::PointerSource* pointer = options.pointer;
+  if (!settings.display.pointer_device.empty()) {
+    pointer_owner = drivers::touch::open_evdev_pointer(settings.display.pointer_device,
+                                                       display.width_px(), display.height_px());
+    pointer = pointer_owner.get();
+  }
   std::filesystem::create_directories(options.out_dir);  // only once everything could start
   // Restarted on every pick from the case list and every applied settings change.
   auto session_owner = std::make_unique<Session>(tissue, settings, clock, jobs);
@@ -521,8 +530,8 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       const auto touches = touch.advance(frame, now, ui, renderer.layout(), shown.bscan.width_mm,
                                          shown.bscan.depth_mm);
       pointer_events.assign(touches.begin(), touches.end());
-      if (options.pointer != nullptr) {
-        const auto touched = options.pointer->poll();
+      if (pointer != nullptr) {
+        const auto touched = pointer->poll();
         pointer_events.insert(pointer_events.end(), touched.begin(), touched.end());
       }
       frame_renderer.pointer = pointer_events;

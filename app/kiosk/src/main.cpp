@@ -52,7 +52,9 @@ int main(int argc, char** argv) {
   app.add_option("--also-case", options.more_cases,
                  "more cases for the case list: --script soak picks among --case and these "
                  "(repeatable)");
-  app.add_option("--script", options.script, "scripted probe motion for headless runs")
+  app.add_option("--script", options.script,
+                 "scripted session for headless runs: sweep-press (default), compare-methods, "
+                 "trainer (the on-screen controls by scripted touches), soak")
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "output folder for PNGs and report.json")
       ->capture_default_str();

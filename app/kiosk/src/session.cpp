@@ -73,6 +73,9 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       skin_(tissue) {
   probe_status_.reserve(160);
   surface_views_.reserve(tissue.structures.size() + 1);
+  for (std::size_t i = 0; i < tissue.line_levels.size(); ++i) {
+    line_levels_.push_back({tissue.line_levels[i], tissue.line_level_spacing_mm[i]});
+  }
   switch_method(settings.sim.method);
   rebuild_image_pipeline();
   update_view();  // the tissue at rest: what the 3D view draws until its stage first runs
@@ -344,6 +347,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
 
   frame.mesh.node_positions_mm = node_positions_;
   frame.mesh.line_indices = tissue_.surface_lines;
+  frame.mesh.line_levels = line_levels_;
   frame.mesh.node_displacement_mm = node_displacement_;
   frame.surfaces = surface_views_;
 

@@ -72,6 +72,18 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
     c.surface_lines.push_back(static_cast<std::uint32_t>(edge[0]));
     c.surface_lines.push_back(static_cast<std::uint32_t>(edge[1]));
   }
+  // The tets' face diagonals put the surface edges about half a cell apart.
+  const double cell_mm = c.grid.spacing_mm.minCoeff();
+  c.line_levels.push_back(c.surface_lines);
+  c.line_level_spacing_mm.push_back(static_cast<float>(0.5 * cell_mm));
+  for (int stride = 1; stride < c.grid.nodes.maxCoeff(); stride *= 2) {
+    std::vector<std::uint32_t>& level = c.line_levels.emplace_back();
+    for (const auto& edge : geometry::grid_surface_lines(c.grid, stride)) {
+      level.push_back(static_cast<std::uint32_t>(edge[0]));
+      level.push_back(static_cast<std::uint32_t>(edge[1]));
+    }
+    c.line_level_spacing_mm.push_back(static_cast<float>(stride * cell_mm));
+  }
   c.structures = build_display_surfaces(c.labels, c.mesh);
   return c;
 }

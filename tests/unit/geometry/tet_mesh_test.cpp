@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <map>
+#include <set>
 
 namespace ultrasim::geometry {
 namespace {
@@ -93,6 +94,30 @@ TEST(TetMesh, BoundaryFacesPointOutwards) {
   const auto edges = unique_edges(faces);
   // Surface of a 3×3×3-cell box: 12 box edges × 3 segments + grid lines and diagonals on faces.
   EXPECT_EQ(edges.size(), 6u * (2u * 3u * 4u + 9u) - 12u * 3u);
+}
+
+// The wireframe's levels of detail on a 3×3×3-node grid (2 cells a side) and a 5×5×5 one.
+TEST(TetMesh, GridSurfaceLinesThinOutByStride) {
+  // Every grid line: each face's 12 segments, the box's 12 edges (2 segments each) shared by two
+  // faces.
+  EXPECT_EQ(grid_surface_lines(unit_grid(3), 1).size(), 6u * 12u - 12u * 2u);
+  // Every 2nd node: only the box's edges remain.
+  EXPECT_EQ(grid_surface_lines(unit_grid(3), 2).size(), 12u * 2u);
+  const auto fine = grid_surface_lines(unit_grid(5), 1);
+  const auto coarse = grid_surface_lines(unit_grid(5), 2);
+  // 5×5 nodes a face: 2 × 5 lines of 4 segments = 40; the box's edges (4 segments) shared.
+  EXPECT_EQ(fine.size(), 6u * 40u - 12u * 4u);
+  // Lines through nodes 0, 2, 4: 2 × 3 lines of 4 segments = 24 a face.
+  EXPECT_EQ(coarse.size(), 6u * 24u - 12u * 4u);
+  // A subset of the tets' surface edges, each once, lower index first.
+  const auto all = unique_edges(boundary_faces(make_grid_tet_mesh(unit_grid(5))));
+  std::set<std::array<std::int32_t, 2>> surface(all.begin(), all.end());
+  std::set<std::array<std::int32_t, 2>> seen;
+  for (const auto& e : fine) {
+    EXPECT_LT(e[0], e[1]);
+    EXPECT_TRUE(surface.contains(e));
+    EXPECT_TRUE(seen.insert(e).second) << "drawn twice";
+  }
 }
 
 TEST(TetMesh, RejectsDegenerateGrids) {

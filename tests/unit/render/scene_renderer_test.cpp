@@ -129,6 +129,29 @@ TEST_F(SceneRendererTest, ViewShowsTheMeshInDisplacementColours) {
   EXPECT_LT(count(without_mesh, view, is_mesh_blue), 5);
 }
 
+// Levels of detail: the finest level whose lines lie at least a few pixels apart is drawn; the
+// trainee's MESH toggle hides the wireframe altogether.
+TEST_F(SceneRendererTest, TheWireframeDrawsTheLevelOfDetailTheScreenCanShow) {
+  frame_.mesh.node_displacement_mm = {};  // every line the ramp's blue
+  const RgbaImage all_lines = draw(frame_);
+  const PixelRect view = scene_region(renderer_.layout());
+  const int full = count(all_lines, view, is_mesh_blue);
+  ASSERT_GT(full, 100);
+  const std::vector<std::uint32_t> one_line = {frame_.mesh.line_indices[0],
+                                               frame_.mesh.line_indices[1]};
+  // Level 0 (every line) 0.01 mm apart: too dense at any zoom; level 1, one line: drawn.
+  std::vector<LineLevel> levels = {{frame_.mesh.line_indices, 0.01f}, {one_line, 1000.0f}};
+  frame_.mesh.line_levels = levels;
+  const int coarse = count(draw(frame_), view, is_mesh_blue);
+  EXPECT_GT(coarse, 0) << "the coarse level's one line";
+  EXPECT_LT(coarse, full / 10) << "the coarse level";
+  // Every line 1000 mm apart: the finest level is fine enough.
+  levels[0].spacing_mm = 1000.0f;
+  EXPECT_EQ(count(draw(frame_), view, is_mesh_blue), full);
+  frame_.view.show_mesh = false;
+  EXPECT_LT(count(draw(frame_), view, is_mesh_blue), 5) << "MESH off";
+}
+
 TEST_F(SceneRendererTest, NoContactShowsTheStateAndNoBscanPixels) {
   frame_.bscan.in_contact = false;
   const RgbaImage image = draw(frame_);

@@ -22,10 +22,20 @@ struct BscanView {
   float gain_db = 0.0f;  // the scanner's gain, read out on the panel
 };
 
+// One level of detail of the mesh's wireframe: its lines and how far apart they lie.
+struct LineLevel {
+  std::span<const std::uint32_t> line_indices;  // pairs of node indices
+  float spacing_mm = 0.0f;
+};
+
 struct MeshView {
   std::span<const float> node_positions_mm;     // x,y,z per node, deformed
   std::span<const std::uint32_t> line_indices;  // pairs of node indices to draw as lines
   std::span<const float> node_displacement_mm;  // |u| per node, for colouring (may be empty)
+  // Coarser alternatives to line_indices, finest first (may be empty): the view draws the finest
+  // whose lines stay a few pixels apart on screen, so a large mesh does not fill the panel
+  // with lines the rasteriser must draw and no one can tell apart.
+  std::span<const LineLevel> line_levels;
 };
 
 // A closed triangle surface (vessel, nerve, bone) embedded in the tissue, already deformed.

@@ -22,6 +22,8 @@ struct DisplaySettings {
   int kms_mode_height_px = 0;
   int kms_refresh_hz = 0;
   bool kms_legacy = false;
+  // The trainer's touch screen or mouse (an evdev node, /dev/input/eventN); empty: none.
+  std::string pointer_device;
 };
 
 // An offscreen display of the given size (tests, tools, screenshots).

@@ -57,4 +57,10 @@ std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh);
 std::vector<std::array<std::int32_t, 2>> unique_edges(
     const std::vector<std::array<std::int32_t, 3>>& triangles);
 
+// The grid's box drawn as a wireframe at a level of detail: on its six faces, the grid lines
+// through every `stride`-th node (and the last), segment by segment between neighbouring nodes so
+// the lines follow the deformed nodes. Index pairs, lower index first. stride 1 is every grid
+// line (without the tets' face diagonals). Allocates.
+std::vector<std::array<std::int32_t, 2>> grid_surface_lines(const GridSpec& grid, int stride);
+
 }  // namespace ultrasim::geometry

@@ -171,6 +171,7 @@ class Session {
   std::vector<std::uint8_t> bscan_;
   void rebuild_image_pipeline();
   void slice_in_parallel(const imaging::ProbePose& probe);
+  std::vector<render::LineLevel> line_levels_;  // views of the case's wireframe levels
   std::vector<float> node_positions_;
   std::vector<float> node_displacement_;
   DeformedSurfaces structures_;

@@ -29,7 +29,11 @@ struct TissueCase {
   std::vector<sim::Material> tet_materials;  // one per tet ([mesh] material_mixing)
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   std::vector<std::uint32_t> surface_lines;  // node index pairs: edges of the mesh surface
-  std::vector<DisplaySurface> structures;    // vein, artery, nerve, bone, as the 3D view shows them
+  // The wireframe's levels of detail, finest first: surface_lines, then the grid lines through
+  // every 1st, 2nd, 4th, ... node (geometry::grid_surface_lines), with their spacing.
+  std::vector<std::vector<std::uint32_t>> line_levels;
+  std::vector<float> line_level_spacing_mm;
+  std::vector<DisplaySurface> structures;  // vein, artery, nerve, bone, as the 3D view shows them
 };
 
 // Loads case.toml and its volumes, lays the tet grid over the region and assigns materials and
