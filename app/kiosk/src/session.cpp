@@ -67,8 +67,8 @@ Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
       display_mapping_(grid_, display_settings(settings.bscan, controls_)),
       bscan_(static_cast<std::size_t>(settings.bscan.width_px) * settings.bscan.height_px,
              static_cast<std::uint8_t>(settings.bscan.background_grey)),
-      node_positions_(3 * tissue.mesh.rest_positions_mm.size(), 0.0f),
-      node_displacement_(tissue.mesh.rest_positions_mm.size(), 0.0f),
+      node_positions_(3 * tissue.view_nodes.size(), 0.0f),
+      node_displacement_(tissue.view_nodes.size(), 0.0f),
       structures_(tissue.structures),
       skin_(tissue) {
   probe_status_.reserve(160);
@@ -290,9 +290,11 @@ void Session::update_bscan() {
 
 void Session::update_view() {
   const auto deformed = engine_->deformed_positions_mm();
-  for (std::size_t n = 0; n < deformed.size(); ++n) {
-    for (int a = 0; a < 3; ++a) node_positions_[3 * n + a] = static_cast<float>(deformed[n][a]);
-    node_displacement_[n] =
+  // Only the surface's nodes: the wireframe draws nothing else.
+  for (std::size_t v = 0; v < tissue_.view_nodes.size(); ++v) {
+    const std::uint32_t n = tissue_.view_nodes[v];
+    for (int a = 0; a < 3; ++a) node_positions_[3 * v + a] = static_cast<float>(deformed[n][a]);
+    node_displacement_[v] =
         static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
   }
   structures_.update(deformed, jobs_);

@@ -53,7 +53,8 @@ const Field kFields[] = {
     ULTRASIM_INT("MSDS", msds, msds, implicit_steps_per_frame, 1),
     ULTRASIM_REAL("SIMULATION", collider, collider, radius_mm, 5.0),
     ULTRASIM_REAL("SIMULATION", stitching, stitching, spring_stiffness_per_modulus_mm, 5.0),
-    ULTRASIM_INT("SIMULATION", frame, frame, simulation_budget_us, 500),
+    ULTRASIM_REAL("SIMULATION", stitching, stitching, sleep_force_mn, 0.05),
+    ULTRASIM_INT("SIMULATION", stitching, stitching, extra_sub_volumes_per_frame, 1),
 };
 
 #undef ULTRASIM_REAL

@@ -68,20 +68,28 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
     for (int fixed_label : mesh_settings.fix_label) c.fixed_nodes[n] |= label == fixed_label;
   }
 
-  for (const auto& edge : geometry::unique_edges(geometry::boundary_faces(c.mesh))) {
-    c.surface_lines.push_back(static_cast<std::uint32_t>(edge[0]));
-    c.surface_lines.push_back(static_cast<std::uint32_t>(edge[1]));
+  // The surface's nodes in mesh order, and each line's ends as indices among them.
+  const auto surface_edges = geometry::unique_edges(geometry::boundary_faces(c.mesh));
+  std::vector<std::int64_t> view_index(c.mesh.rest_positions_mm.size(), -1);
+  for (const auto& edge : surface_edges) view_index[edge[0]] = view_index[edge[1]] = 0;
+  for (std::size_t n = 0; n < view_index.size(); ++n) {
+    if (view_index[n] < 0) continue;
+    view_index[n] = static_cast<std::int64_t>(c.view_nodes.size());
+    c.view_nodes.push_back(static_cast<std::uint32_t>(n));
   }
+  const auto add_lines = [&](const auto& edges, std::vector<std::uint32_t>& lines) {
+    for (const auto& edge : edges) {
+      lines.push_back(static_cast<std::uint32_t>(view_index[edge[0]]));
+      lines.push_back(static_cast<std::uint32_t>(view_index[edge[1]]));
+    }
+  };
+  add_lines(surface_edges, c.surface_lines);
   // The tets' face diagonals put the surface edges about half a cell apart.
   const double cell_mm = c.grid.spacing_mm.minCoeff();
   c.line_levels.push_back(c.surface_lines);
   c.line_level_spacing_mm.push_back(static_cast<float>(0.5 * cell_mm));
   for (int stride = 1; stride < c.grid.nodes.maxCoeff(); stride *= 2) {
-    std::vector<std::uint32_t>& level = c.line_levels.emplace_back();
-    for (const auto& edge : geometry::grid_surface_lines(c.grid, stride)) {
-      level.push_back(static_cast<std::uint32_t>(edge[0]));
-      level.push_back(static_cast<std::uint32_t>(edge[1]));
-    }
+    add_lines(geometry::grid_surface_lines(c.grid, stride), c.line_levels.emplace_back());
     c.line_level_spacing_mm.push_back(static_cast<float>(stride * cell_mm));
   }
   c.structures = build_display_surfaces(c.labels, c.mesh);

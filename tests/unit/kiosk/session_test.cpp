@@ -33,7 +33,11 @@ TEST_F(SessionTest, PressingShowsTissueAndPushesTheSkinDown) {
   EXPECT_GT(bright, 64 * 64 / 4);
   const render::FrameInput frame = session.frame_input(9);
   EXPECT_TRUE(frame.bscan.in_contact);
-  EXPECT_EQ(frame.mesh.node_positions_mm.size(), 3u * 125u);
+  // The view gets the 5×5×5 mesh's surface nodes only (125 less the 27 inside).
+  EXPECT_EQ(frame.mesh.node_positions_mm.size(), 3u * 98u);
+  for (const auto& level : frame.mesh.line_levels) {
+    for (std::uint32_t i : level.line_indices) ASSERT_LT(i, 98u);
+  }
   float max_displacement = 0;
   for (float d : frame.mesh.node_displacement_mm) max_displacement = std::max(max_displacement, d);
   EXPECT_NEAR(max_displacement, 2.7, 0.05);

@@ -32,6 +32,24 @@ TEST(TissueCase, MeshesTheCaseWithMaterialsFromLabelsAndFixedNodes) {
   }
   EXPECT_EQ(fixed, 25);
   EXPECT_FALSE(c.surface_lines.empty());
+  // The wireframe's nodes are the surface's, its lines index them, its levels coarsen.
+  EXPECT_EQ(c.view_nodes.size(), 125u - 27u);
+  for (std::uint32_t n : c.view_nodes) {
+    const Eigen::Vector3d& p = c.mesh.rest_positions_mm[n];
+    const bool on_box = (p.array() == c.mesh.rest_positions_mm.front().array()).any() ||
+                        (p.array() == c.mesh.rest_positions_mm.back().array()).any();
+    EXPECT_TRUE(on_box) << "node " << n << " is inside";
+  }
+  ASSERT_EQ(c.line_levels.size(), c.line_level_spacing_mm.size());
+  ASSERT_GE(c.line_levels.size(), 3u);
+  EXPECT_EQ(c.line_levels.front(), c.surface_lines);
+  for (std::size_t l = 0; l < c.line_levels.size(); ++l) {
+    for (std::uint32_t i : c.line_levels[l]) ASSERT_LT(i, c.view_nodes.size());
+    if (l > 0) {
+      EXPECT_LT(c.line_levels[l].size(), c.line_levels[l - 1].size());
+      EXPECT_GT(c.line_level_spacing_mm[l], c.line_level_spacing_mm[l - 1]);
+    }
+  }
 }
 
 void expect_error_mentions(const std::function<void()>& load,

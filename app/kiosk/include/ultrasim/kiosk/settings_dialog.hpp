@@ -14,7 +14,9 @@
 
 namespace ultrasim::kiosk {
 
-// The dialog's fields (FEM, MSDS and simulation pages) with the values in `settings`.
+// The dialog's fields (FEM, MSDS and simulation pages: the methods' iterations and steps, the
+// MSDS's springs, the collider, the stitching's seams and selection) with the values in
+// `settings`. Not the [frame] budgets: the frame loop's task table is fixed when it starts.
 // Allocates.
 std::vector<render::SettingField> settings_fields(const config::AppSettings& settings);
 
