@@ -1,9 +1,10 @@
 #pragma once
 
 // The pointer's events as ImGui 1.86 wants them: one state per frame. A tap that arrives within
-// one frame (press and release together) would otherwise never be seen pressed, so at most one
-// button change is applied a frame and the rest wait; a press somewhere new waits a frame
-// behind its move, as if the finger hovered before it touched. Internal to render/.
+// one frame (press and release together) would otherwise never be seen pressed, so a press or
+// release gets a frame of its own, after the frame of the moves before it; a press somewhere
+// new waits a frame behind its move, as if the finger hovered before it touched. Internal to
+// render/.
 
 #include <cstddef>
 #include <span>
@@ -22,8 +23,9 @@ struct PointerState {
 
 class PointerQueue {
  public:
-  // Queues `events` and returns the state for this frame: every event up to (not including) the
-  // second button change. Allocates only when more events wait than ever before.
+  // Queues `events` and returns the state for this frame: the moves and wheel turns up to the
+  // next press or release, or that press or release alone. Allocates only when more events wait
+  // than ever before.
   PointerState advance(std::span<const hal::PointerEvent> events);
 
   std::size_t waiting() const { return pending_.size() - head_; }

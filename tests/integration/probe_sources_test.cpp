@@ -84,12 +84,38 @@ class ProbeSources : public ::testing::Test {
     keyboard_written_ = device >= 0 && record(EV_REL, REL_X, -20) &&  // 2 mm to the left
                         record(EV_REL, REL_WHEEL, -12) &&  // 6 mm down: 1 mm into the skin
                         record(EV_SYN, SYN_REPORT, 0);
+    // The trainer's mouse for the on-screen controls, on a second FIFO ([display]
+    // pointer_device): from the screen's centre (over the 3D view) a drag 100 px to the left
+    // and two wheel notches up.
+    const fs::path pointer_fifo = dir_ / "pointer.evdev";
+    ::mkfifo(pointer_fifo.c_str(), 0600);
+    const int pointer = ::open(pointer_fifo.c_str(), O_RDWR | O_NONBLOCK);
+    const auto pointer_record = [pointer](std::uint16_t type, std::uint16_t code,
+                                          std::int32_t value) {
+      input_event e{};
+      e.type = type;
+      e.code = code;
+      e.value = value;
+      return ::write(pointer, &e, sizeof e) == static_cast<ssize_t>(sizeof e);
+    };
+    pointer_written_ = pointer >= 0 && pointer_record(EV_KEY, BTN_LEFT, 1) &&
+                       pointer_record(EV_SYN, SYN_REPORT, 0);
+    for (int i = 0; i < 5 && pointer_written_; ++i) {
+      pointer_written_ =
+          pointer_record(EV_REL, REL_X, -20) && pointer_record(EV_SYN, SYN_REPORT, 0);
+    }
+    pointer_written_ = pointer_written_ && pointer_record(EV_KEY, BTN_LEFT, 0) &&
+                       pointer_record(EV_SYN, SYN_REPORT, 0) &&
+                       pointer_record(EV_REL, REL_WHEEL, 2) &&
+                       pointer_record(EV_SYN, SYN_REPORT, 0);
     std::ofstream(dir_ / "keyboard.toml")
+        << "[display]\npointer_device = \"" << pointer_fifo.string() << "\"\n"
         << "[probe]\nsource = \"keyboard\"\nkeyboard_device = \"" << fifo.string() << "\"\n";
     keyboard_code_ = run(kiosk + (dir_ / "keyboard").string() + " --config " +
                              (dir_ / "keyboard.toml").string() + " --probe-seconds 1",
                          dir_ / "keyboard.txt");
     if (device >= 0) ::close(device);
+    if (pointer >= 0) ::close(pointer);
     // A camera that is not plugged in.
     std::ofstream(dir_ / "unplugged.toml")
         << "[probe]\nsource = \"camera\"\ncamera_device = \"/dev/video-ultrasim-none\"\n";
@@ -107,7 +133,7 @@ class ProbeSources : public ::testing::Test {
   static inline bool demo_ok_ = false, views_ok_ = false;
   static inline int replay_code_ = -1, stale_code_ = -1, camera_code_ = -1, script_code_ = -1,
                     keyboard_code_ = -1, unplugged_code_ = -1;
-  static inline bool keyboard_written_ = false;
+  static inline bool keyboard_written_ = false, pointer_written_ = false;
 };
 
 TEST_F(ProbeSources, ACanLogReplayedMovesTheProbe) {
@@ -188,6 +214,19 @@ TEST_F(ProbeSources, TheKeyboardSourceMovesTheProbe) {
   EXPECT_EQ(json_number(json, "status_frames"), 0);
   EXPECT_EQ(json_number(json, "poses_rejected"), 0);
   EXPECT_GT(json_number(json, "frames_in_contact"), 0.9 * json_number(json, "frames"));
+}
+
+// The trainer's mouse (an evdev node named by [display] pointer_device) works the on-screen
+// controls: its drag over the 3D view turned it, its wheel zoomed in.
+TEST_F(ProbeSources, ThePointerDeviceOrbitsAndZoomsTheView) {
+  ASSERT_TRUE(pointer_written_);
+  ASSERT_EQ(keyboard_code_, 0) << read_text(dir_ / "keyboard.txt");
+  const std::string json = report("keyboard");
+  const std::size_t end = json.find("\"marker\": \"probe-end\"");
+  ASSERT_NE(end, std::string::npos);
+  // 100 px of a 692 px wide view at 180° a width: 26°, the view turned to the right.
+  EXPECT_NEAR(json_number(json, "view_azimuth_offset_deg", end), 100.0 * 180.0 / 692.0, 1.0);
+  EXPECT_NEAR(json_number(json, "view_zoom", end), 1.15 * 1.15, 1e-3);
 }
 
 // No camera: the kiosk runs on, says so on screen and in the report, and never moves the probe.

@@ -252,13 +252,15 @@ struct ServiceScreen {
   std::vector<render::ServiceLine> lines;
 
   void refresh(std::string_view display, hal::PoseSource& probe, std::string_view probe_status,
-               const Session& session, std::string_view case_name,
-               const sched::Scheduler& scheduler,
+               const hal::PointerSource* pointer, const Session& session,
+               std::string_view case_name, const sched::Scheduler& scheduler,
                const std::function<std::int64_t()>& resident_memory_kib) {
     static constexpr std::string_view kLabels[] = {
-        "DISPLAY", "PROBE SOURCE",    "PROBE STATUS",    "PROBE AT (MM)",   "CASE",
-        "METHOD",  "FRAME P50 / P99", "DEADLINE MISSES", "SKIPPED B-SCANS", "MEMORY"};
+        "DISPLAY",      "PROBE SOURCE",    "PROBE STATUS",    "PROBE AT (MM)",   "CASE",
+        "METHOD",       "FRAME P50 / P99", "DEADLINE MISSES", "SKIPPED B-SCANS", "MEMORY",
+        "TOUCH / MOUSE"};
     values.assign(std::size(kLabels), std::string());
+    static_assert(std::size(kLabels) == 11, "one value per label below");
     char text[96];
     values[0] = display;
     values[1] = probe.name();
@@ -283,10 +285,14 @@ struct ServiceScreen {
     values[8] = std::to_string(bscan_slips);
     values[9] = resident_memory_kib ? std::to_string(resident_memory_kib() / 1024) + " MIB"
                                     : std::string("-");
+    values[10] = pointer == nullptr               ? std::string("none")
+                 : pointer->status_text().empty() ? std::string(pointer->name()) + ": ok"
+                                                  : std::string(pointer->status_text());
     lines.clear();
     for (std::size_t i = 0; i < values.size(); ++i) lines.push_back({kLabels[i], values[i], true});
     lines[2].ok = probe_status.empty();
     lines[7].ok = frames.deadline_misses() == 0;
+    lines[10].ok = pointer == nullptr || pointer->status_text().empty();
   }
 };
 
@@ -584,7 +590,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       stats.probe_ok = probe_status.empty();
     }
     if (frame % 30 == 0) {
-      service.refresh(display_name, *probe.pose, probe_status, *session,
+      service.refresh(display_name, *probe.pose, probe_status, pointer, *session,
                       tissues[case_index].settings.name, loop.scheduler(),
                       options.resident_memory_kib);
       model.service = service.lines;
@@ -638,6 +644,9 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       snap.gain_db = c.gain_db;
       snap.frozen = c.frozen;
       snap.caliper_mm = ui.calipers().points == 2 ? ui.calipers().distance_mm() : 0.0;
+      snap.view_azimuth_offset_deg = ui.view_options().azimuth_offset_deg;
+      snap.view_elevation_offset_deg = ui.view_options().elevation_offset_deg;
+      snap.view_zoom = ui.view_options().zoom;
       snap.bscan_png = "bscan-" + snap.marker + ".png";
       snap.screen_png = "screen-" + snap.marker + ".png";
       render::write_png_grey(options.out_dir / snap.bscan_png, session->bscan(),

@@ -119,7 +119,9 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
         << ", \"skin_dent_mm\": " << s.skin_dent_mm << ", \"compression_mm\": " << s.compression_mm
         << ", \"caliper_mm\": " << s.caliper_mm << ", \"depth_mm\": " << s.depth_mm
         << ", \"gain_db\": " << s.gain_db << ", \"frozen\": " << (s.frozen ? "true" : "false")
-        << "}";
+        << ", \"view_azimuth_offset_deg\": " << s.view_azimuth_offset_deg
+        << ", \"view_elevation_offset_deg\": " << s.view_elevation_offset_deg
+        << ", \"view_zoom\": " << s.view_zoom << "}";
   }
   out << "\n  ],\n  \"memory\": {\"baseline_frame\": " << r.memory_baseline_frame
       << ", \"growth_kib\": " << r.memory_growth_kib() << ", \"samples_kib\": [";

@@ -170,6 +170,20 @@ TEST_F(TrainerUiTest, DraggingTheViewOrbitsAndTheWheelZooms) {
   EXPECT_TRUE(ui_.view_options().show_mesh);
 }
 
+// A device read once a frame may hand over a whole drag at once: its press, moves and release
+// still reach the UI in order, one frame each, so the view turns.
+TEST_F(TrainerUiTest, ADragArrivingInOneBatchStillOrbits) {
+  const PixelRect v = renderer_.layout().view_3d;
+  const float x = static_cast<float>(v.center_x_px()), y = static_cast<float>(v.center_y_px());
+  run({{Kind::kMove, x, y, 0},
+       {Kind::kPress, x, y, 0},
+       {Kind::kMove, x - 60.0f, y, 0},
+       {Kind::kMove, x - 120.0f, y, 0},
+       {Kind::kRelease, x - 120.0f, y, 0}});
+  for (int i = 0; i < 4; ++i) run({});
+  EXPECT_GT(ui_.view_options().azimuth_offset_deg, 10.0f);
+}
+
 TEST_F(TrainerUiTest, ADragThatStartsOnAControlDoesNotOrbit) {
   const auto rect = ui_.widget_rect("MESH");
   ASSERT_TRUE(rect);

@@ -27,6 +27,10 @@ struct Snapshot {
   double depth_mm = 0.0;
   double gain_db = 0.0;
   bool frozen = false;
+  // How the trainee looks at the 3D view (render::ViewOptions): orbit and zoom.
+  double view_azimuth_offset_deg = 0.0;
+  double view_elevation_offset_deg = 0.0;
+  double view_zoom = 1.0;
 };
 
 // What the trainer's controls did (render::TrainerUi): touches, and what they changed.
