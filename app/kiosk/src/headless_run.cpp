@@ -19,7 +19,9 @@
 #include "ultrasim/kiosk/run_report.hpp"
 #include "ultrasim/kiosk/script.hpp"
 #include "ultrasim/kiosk/scripted_touch.hpp"
+#include "ultrasim/kiosk/service_screen.hpp"
 #include "ultrasim/kiosk/session.hpp"
+#include "ultrasim/kiosk/session_scripts.hpp"
 #include "ultrasim/kiosk/settings_dialog.hpp"
 #include "ultrasim/kiosk/soak_script.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
@@ -33,129 +35,6 @@ namespace ultrasim::kiosk {
 
 namespace {
 
-// sweep-press: the probe's sweep and press over the case, then the controls: freeze, press again
-// while frozen (the image must hold while the tissue moves), unfreeze at a deeper setting.
-Script sweep_press(const config::CaseScan& scan, double depth_mm) {
-  const Eigen::Vector3d start(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]);
-  const Eigen::Vector3d end(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2]);
-  Script script;
-  script.keyframes = drivers::sim_probe::sweep_press_script(start, end, scan.press_depth_mm);
-  const auto& last = script.keyframes.back();
-  const auto at = [&](double seconds_after) {
-    return last.time_us + static_cast<hal::TimestampUs>(seconds_after * 1e6);
-  };
-  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d pressed = last.position_mm + 0.5 * scan.press_depth_mm * down;
-  script.keyframes.push_back({at(0.5), pressed, last.orientation, ""});
-  script.keyframes.push_back({at(0.75), pressed, last.orientation, "frozen"});
-  script.keyframes.push_back({at(1.0), last.position_mm, last.orientation, ""});
-  script.keyframes.push_back({at(1.5), last.position_mm, last.orientation, "deeper"});
-  script.controls = {{at(0.0), true, depth_mm, {}, {}}, {at(1.0), false, 1.5 * depth_mm, {}, {}}};
-  // The trainee saves the image at the press (the keyframe marked "pressed").
-  for (const auto& k : script.keyframes) {
-    if (k.marker == "pressed") {
-      ControlEvent save;
-      save.time_us = k.time_us;
-      save.save = true;
-      script.controls.push_back(save);
-    }
-  }
-  std::stable_sort(
-      script.controls.begin(), script.controls.end(),
-      [](const ControlEvent& a, const ControlEvent& b) { return a.time_us < b.time_us; });
-  return script;
-}
-
-// compare-methods: the probe presses in the middle of the sweep and holds while the trainee
-// switches through every deformation method live; a screenshot per method once it has settled.
-Script compare_methods(const config::CaseScan& scan) {
-  const Eigen::Vector3d middle =
-      (Eigen::Vector3d(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]) +
-       Eigen::Vector3d(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2])) /
-      2;
-  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
-  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
-  const auto at = [](double seconds) { return static_cast<hal::TimestampUs>(seconds * 1e6); };
-  Script script;
-  script.keyframes = {{at(0.0), middle - 5.0 * down, level, ""},
-                      {at(0.5), middle, level, ""},
-                      {at(1.5), middle + scan.press_depth_mm * down, level, ""}};
-  double t = 1.5;
-  for (const auto method : kLiveMethods) {
-    script.controls.push_back({at(t), false, 0.0, method, {}});
-    t += 1.0;
-    script.keyframes.push_back(
-        {at(t), middle + scan.press_depth_mm * down, level, std::string(sim::engine_key(method))});
-  }
-  script.keyframes.push_back({at(t + 0.75), middle - 5.0 * down, level, "lifted"});
-  return script;
-}
-
-// trainer: the probe rests over the vessels while the trainee works the controls on screen, by
-// touch alone: presses with the compression buttons, freezes, measures with the calipers,
-// saves, turns gain and depth up, eases off, switches method, orbits the view and cuts the skin
-// away, opens the settings (one step of the MSDS, applied) and the service screen.
-Script trainer(const config::CaseScan& scan) {
-  const Eigen::Vector3d middle =
-      (Eigen::Vector3d(scan.start_mm[0], scan.start_mm[1], scan.start_mm[2]) +
-       Eigen::Vector3d(scan.end_mm[0], scan.end_mm[1], scan.end_mm[2])) /
-      2;
-  const Eigen::Vector3d down = Eigen::Vector3d::UnitZ();
-  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
-  const auto at = [](double seconds) { return static_cast<hal::TimestampUs>(seconds * 1e6); };
-  Script script;
-  script.keyframes = {
-      {at(0.0), middle - 5.0 * down, level, ""}, {at(0.5), middle, level, ""},
-      {at(1.0), middle, level, "rest"},          {at(2.6), middle, level, "pressed"},
-      {at(3.7), middle, level, "measured"},      {at(6.0), middle, level, "released"},
-      {at(7.6), middle, level, "orbited"},       {at(9.3), middle, level, "settings"},
-      {at(10.0), middle, level, "service"},      {at(10.4), middle, level, ""}};
-  const auto tap = [&](double seconds, std::string widget) {
-    UiEvent e;
-    e.time_us = at(seconds);
-    e.widget = std::move(widget);
-    script.ui.push_back(e);
-  };
-  // Four presses of 2 mm: 8 mm, the sweep-press script's depth.
-  for (double t : {1.2, 1.4, 1.6, 1.8}) tap(t, "PRESS +");
-  tap(2.8, "FREEZE");
-  tap(3.0, "CALIPER");
-  // 10 mm from the image's left edge, 10 and 30 mm deep: 20 mm apart.
-  for (const auto& [t, depth] : {std::pair{3.2, 10.0f}, std::pair{3.4, 30.0f}}) {
-    UiEvent e;
-    e.time_us = at(t);
-    e.kind = UiEvent::Kind::kTapImage;
-    e.image_mm = {10.0f, depth};
-    script.ui.push_back(e);
-  }
-  tap(3.8, "SAVE");
-  tap(4.0, "FREEZE");
-  tap(4.2, "GAIN +");
-  tap(4.4, "DEPTH +");
-  for (double t : {4.6, 4.8, 5.0, 5.2}) tap(t, "PRESS -");
-  tap(6.2, "METHOD");
-  tap(6.5, "MSDS");
-  UiEvent drag;
-  drag.time_us = at(6.8);
-  drag.kind = UiEvent::Kind::kDragView;
-  drag.drag_px = {-120.0f, 40.0f};
-  script.ui.push_back(drag);
-  tap(7.2, "SKIN");
-  tap(7.8, "SETTINGS");
-  tap(8.0, "TAB MSDS");
-  tap(8.2, "msds.steps_per_frame +");
-  tap(8.5, "APPLY");
-  // A time step stepped below zero: the schema refuses it and the dialog says why.
-  tap(8.7, "SETTINGS");
-  tap(8.8, "TAB MSDS");
-  for (double t : {8.9, 8.95, 9.0, 9.05, 9.1, 9.15}) tap(t, "msds.time_step_s -");
-  tap(9.2, "APPLY");
-  tap(9.5, "CLOSE##SETTINGS CLOSE");
-  tap(9.7, "SERVICE");
-  return script;
-}
-
-// The screen as the frame loop's renderer.
 // The screen as the frame loop's renderer: the scene, then the trainer's controls over it.
 class DisplayFrameRenderer final : public FrameRenderer {
  public:
@@ -233,9 +112,9 @@ sim::EngineKind first_method_for(const TissueCase& tissue) {
 Script make_script(const HeadlessRunOptions& options, std::span<const TissueCase> tissues) {
   const config::CaseScan& scan = tissues.front().settings.scan;
   const double depth_mm = tissues.front().settings.probe.depth_mm;
-  if (options.script == "sweep-press") return sweep_press(scan, depth_mm);
-  if (options.script == "compare-methods") return compare_methods(scan);
-  if (options.script == "trainer") return trainer(scan);
+  if (options.script == "sweep-press") return sweep_press_session(scan, depth_mm);
+  if (options.script == "compare-methods") return compare_methods_session(scan);
+  if (options.script == "trainer") return trainer_session(scan);
   if (options.script == "soak") {
     std::vector<SoakCase> cases;
     for (const auto& t : tissues) cases.push_back({t.settings.scan, t.settings.probe.depth_mm});
@@ -244,57 +123,6 @@ Script make_script(const HeadlessRunOptions& options, std::span<const TissueCase
   throw std::invalid_argument("unknown script '" + options.script +
                               "'; available: sweep-press, compare-methods, trainer, soak");
 }
-
-// The service screen's lines: what a bring-up engineer checks first. Rebuilt a few times a
-// second (it allocates), not every frame.
-struct ServiceScreen {
-  std::vector<std::string> values;
-  std::vector<render::ServiceLine> lines;
-
-  void refresh(std::string_view display, hal::PoseSource& probe, std::string_view probe_status,
-               const hal::PointerSource* pointer, const Session& session,
-               std::string_view case_name, const sched::Scheduler& scheduler,
-               const std::function<std::int64_t()>& resident_memory_kib) {
-    static constexpr std::string_view kLabels[] = {
-        "DISPLAY",      "PROBE SOURCE",    "PROBE STATUS",    "PROBE AT (MM)",   "CASE",
-        "METHOD",       "FRAME P50 / P99", "DEADLINE MISSES", "SKIPPED B-SCANS", "MEMORY",
-        "TOUCH / MOUSE"};
-    values.assign(std::size(kLabels), std::string());
-    static_assert(std::size(kLabels) == 11, "one value per label below");
-    char text[96];
-    values[0] = display;
-    values[1] = probe.name();
-    values[2] = probe_status.empty() ? std::string("ok") : std::string(probe_status);
-    const render::FrameInput shown = session.frame_input(0);
-    const auto& m = shown.probe.probe_to_patient;
-    std::snprintf(text, sizeof text, "%.1f  %.1f  %.1f", static_cast<double>(m[12]),
-                  static_cast<double>(m[13]), static_cast<double>(m[14]));
-    values[3] = text;
-    values[4] = case_name;
-    values[5] = session.method_name();
-    const sched::FrameTimeStats& frames = scheduler.frame_stats();
-    std::snprintf(text, sizeof text, "%.1f / %.1f MS",
-                  static_cast<double>(frames.percentile_us(50.0)) * 1e-3,
-                  static_cast<double>(frames.percentile_us(99.0)) * 1e-3);
-    values[6] = text;
-    values[7] = std::to_string(frames.deadline_misses());
-    std::int64_t bscan_slips = 0;
-    for (const auto& t : scheduler.task_stats()) {
-      if (std::string_view(t.name) == FrameLoop::kBscan) bscan_slips = t.slips;
-    }
-    values[8] = std::to_string(bscan_slips);
-    values[9] = resident_memory_kib ? std::to_string(resident_memory_kib() / 1024) + " MIB"
-                                    : std::string("-");
-    values[10] = pointer == nullptr               ? std::string("none")
-                 : pointer->status_text().empty() ? std::string(pointer->name()) + ": ok"
-                                                  : std::string(pointer->status_text());
-    lines.clear();
-    for (std::size_t i = 0; i < values.size(); ++i) lines.push_back({kLabels[i], values[i], true});
-    lines[2].ok = probe_status.empty();
-    lines[7].ok = frames.deadline_misses() == 0;
-    lines[10].ok = pointer == nullptr || pointer->status_text().empty();
-  }
-};
 
 }  // namespace
 
