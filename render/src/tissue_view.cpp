@@ -237,12 +237,11 @@ void TissueView::build_geometry(const FrameInput& frame) {
 }
 
 std::span<const std::uint32_t> lines_for_screen(const MeshView& mesh, const SceneCamera& camera,
-                                                const SceneStyle& style, int viewport_height_px) {
-  // Pixels per mm at the framed centre.
-  constexpr float kDegToRad = std::numbers::pi_v<float> / 180.0f;
-  const float half_fov = 0.5f * std::clamp(style.camera_fov_y_deg, 5.0f, 120.0f) * kDegToRad;
-  const float px_per_mm = static_cast<float>(viewport_height_px) /
-                          (2.0f * std::max(camera.target_distance_mm, 1e-3f) * std::tan(half_fov));
+                                                int viewport_height_px) {
+  // Pixels per mm at the framed centre: the projection's focal term (1 / tan(fov / 2)) over the
+  // distance, across half the viewport's height.
+  const float px_per_mm = 0.5f * static_cast<float>(viewport_height_px) * camera.projection[5] /
+                          std::max(camera.target_distance_mm, 1e-3f);
   for (const LineLevel& level : mesh.line_levels) {
     if (level.spacing_mm * px_per_mm >= kMinLineSpacingPx) return level.line_indices;
   }
@@ -278,7 +277,7 @@ void TissueView::draw(const FrameInput& frame, const ScreenLayout& layout, int s
   // Mesh lines first: the opaque bulk of the scene (and on a software rasteriser much of its
   // cost: not even uploaded when the trainee hides it).
   MeshView mesh = frame.mesh;
-  mesh.line_indices = lines_for_screen(frame.mesh, camera, orbit, r.height_px);
+  mesh.line_indices = lines_for_screen(frame.mesh, camera, r.height_px);
   if (const GLsizei index_count = view.show_mesh ? upload_mesh(mesh) : 0; index_count > 0) {
     glUseProgram(programs.mesh.id);
     glUniformMatrix4fv(programs.mesh.u_view, 1, GL_FALSE, camera.view.data());

@@ -28,7 +28,7 @@ inline constexpr float kMinLineSpacingPx = 10.0f;
 // whose spacing at the framed centre is at least kMinLineSpacingPx (the coarsest if none is),
 // or line_indices when the mesh has no levels. Pure.
 std::span<const std::uint32_t> lines_for_screen(const MeshView& mesh, const SceneCamera& camera,
-                                                const SceneStyle& style, int viewport_height_px);
+                                                int viewport_height_px);
 
 // Render thread only. After the first frame draw() allocates nothing unless the mesh grows or
 // the frame brings more surfaces than any frame before.

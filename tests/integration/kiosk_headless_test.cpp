@@ -75,6 +75,14 @@ double dark_area_mm2(const GreyImage& img, double x0, double x1, double z0, doub
   return dark * px_w * px_h;
 }
 
+// The text field `key` a saved PNG records (render::write_png_grey's PngText), or "<missing>".
+std::string png_text_field(const fs::path& png, const std::string& key) {
+  for (const auto& t : ultrasim::render::read_png_text(png)) {
+    if (t.key == key) return t.value;
+  }
+  return "<missing>";
+}
+
 class KioskHeadless : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -129,12 +137,7 @@ TEST_F(KioskHeadless, TheSavedImageRecordsCasePoseAndSettings) {
   const fs::path saved = out_ / "saved-1.png";
   ASSERT_TRUE(fs::exists(saved));
   EXPECT_EQ(read_grey_png(saved).width, 512);
-  const auto text = ultrasim::render::read_png_text(saved);
-  const auto field = [&text](const std::string& key) {
-    for (const auto& t : text)
-      if (t.key == key) return t.value;
-    return std::string("<missing>");
-  };
+  const auto field = [&saved](const std::string& key) { return png_text_field(saved, key); };
   EXPECT_EQ(field("Case"), "default-upper-arm");
   EXPECT_EQ(field("Method"), "exact");
   EXPECT_EQ(field("Probe position mm"), "-2.000 0.000 8.000");  // the script's 8 mm press
@@ -282,12 +285,8 @@ TEST_F(KioskTrainer, CalipersReadTheKnownDistance) {
 
 TEST_F(KioskTrainer, SaveFreezeGainDepthAndMethodWorkByTouch) {
   ASSERT_EQ(exit_code_, 0);
-  const auto text = ultrasim::render::read_png_text(out_ / "saved-1.png");
-  const auto field = [&text](const std::string& key) {
-    for (const auto& t : text)
-      if (t.key == key) return t.value;
-    return std::string("<missing>");
-  };
+  const fs::path saved = out_ / "saved-1.png";
+  const auto field = [&saved](const std::string& key) { return png_text_field(saved, key); };
   EXPECT_EQ(field("Frozen"), "yes");
   EXPECT_EQ(field("Compression mm"), "8.000");
   EXPECT_EQ(snapshot("released", "gain_db"), 3.0);

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <string>
 
+#include "evdev_records.hpp"
 #include "report_json.hpp"
 
 namespace {
@@ -75,11 +76,7 @@ class ProbeSources : public ::testing::Test {
     ::mkfifo(fifo.c_str(), 0600);
     const int device = ::open(fifo.c_str(), O_RDWR | O_NONBLOCK);
     const auto record = [device](std::uint16_t type, std::uint16_t code, std::int32_t value) {
-      input_event e{};
-      e.type = type;
-      e.code = code;
-      e.value = value;
-      return ::write(device, &e, sizeof e) == static_cast<ssize_t>(sizeof e);
+      return ultrasim::testing::write_input_event(device, type, code, value);
     };
     keyboard_written_ = device >= 0 && record(EV_REL, REL_X, -20) &&  // 2 mm to the left
                         record(EV_REL, REL_WHEEL, -12) &&  // 6 mm down: 1 mm into the skin
@@ -92,11 +89,7 @@ class ProbeSources : public ::testing::Test {
     const int pointer = ::open(pointer_fifo.c_str(), O_RDWR | O_NONBLOCK);
     const auto pointer_record = [pointer](std::uint16_t type, std::uint16_t code,
                                           std::int32_t value) {
-      input_event e{};
-      e.type = type;
-      e.code = code;
-      e.value = value;
-      return ::write(pointer, &e, sizeof e) == static_cast<ssize_t>(sizeof e);
+      return ultrasim::testing::write_input_event(pointer, type, code, value);
     };
     pointer_written_ = pointer >= 0 && pointer_record(EV_KEY, BTN_LEFT, 1) &&
                        pointer_record(EV_SYN, SYN_REPORT, 0);

@@ -348,7 +348,7 @@ render::FrameInput Session::frame_input(std::int64_t frame_index) const {
   frame.probe_status = probe_status_;
 
   frame.mesh.node_positions_mm = node_positions_;
-  frame.mesh.line_indices = tissue_.surface_lines;
+  frame.mesh.line_indices = tissue_.line_levels.front();  // the finest
   frame.mesh.line_levels = line_levels_;
   frame.mesh.node_displacement_mm = node_displacement_;
   frame.surfaces = surface_views_;

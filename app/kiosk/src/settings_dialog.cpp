@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
+#include <utility>
 
 #include "ultrasim/config/config_error.hpp"
 
@@ -28,37 +30,44 @@ int to_int(double v) {
   return static_cast<int>(v);
 }
 
-#define ULTRASIM_REAL(tab, table, member, key, step)                                    \
-  Field {                                                                               \
-    tab, #table, #key, step,                                                            \
-        [](const config::AppSettings& s) { return static_cast<double>(s.member.key); }, \
-        [](config::AppSettings& s, double v) { s.member.key = v; }, false               \
+template <typename T>
+T from_dialog(double v) {
+  if constexpr (std::is_integral_v<T>) {
+    return to_int(v);
+  } else {
+    return v;
   }
-#define ULTRASIM_INT(tab, table, member, key, step)                                     \
-  Field {                                                                               \
-    tab, #table, #key, step,                                                            \
-        [](const config::AppSettings& s) { return static_cast<double>(s.member.key); }, \
-        [](config::AppSettings& s, double v) { s.member.key = to_int(v); }, true        \
+}
+
+// A field of app.toml's `table` (AppSettings has a member of the same name), whose type says
+// whether it is a whole number.
+#define ULTRASIM_FIELD(tab, table, key, step)                                          \
+  Field {                                                                              \
+    tab, #table, #key, step,                                                           \
+        [](const config::AppSettings& s) { return static_cast<double>(s.table.key); }, \
+        [](config::AppSettings& s, double v) {                                         \
+          s.table.key = from_dialog<decltype(s.table.key)>(v);                         \
+        },                                                                             \
+        std::is_integral_v<decltype(std::declval<config::AppSettings&>().table.key)>   \
   }
 
 const Field kFields[] = {
-    ULTRASIM_INT("FEM", fem, fem, pcg_iterations_per_frame, 5),
-    ULTRASIM_INT("FEM", exact, exact, max_contact_rounds, 1),
-    ULTRASIM_INT("FEM", exact, exact, max_cached_nodes, 32),
-    ULTRASIM_INT("FEM", corotational, corotational, pcg_iterations_per_frame, 5),
-    ULTRASIM_REAL("MSDS", msds, msds, stiffness_per_modulus_mm, 0.25),
-    ULTRASIM_REAL("MSDS", msds, msds, damping_per_stiffness_s, 0.05),
-    ULTRASIM_REAL("MSDS", msds, msds, time_step_s, 0.001),
-    ULTRASIM_INT("MSDS", msds, msds, steps_per_frame, 1),
-    ULTRASIM_INT("MSDS", msds, msds, implicit_steps_per_frame, 1),
-    ULTRASIM_REAL("SIMULATION", collider, collider, radius_mm, 5.0),
-    ULTRASIM_REAL("SIMULATION", stitching, stitching, spring_stiffness_per_modulus_mm, 5.0),
-    ULTRASIM_REAL("SIMULATION", stitching, stitching, sleep_force_mn, 0.05),
-    ULTRASIM_INT("SIMULATION", stitching, stitching, extra_sub_volumes_per_frame, 1),
+    ULTRASIM_FIELD("FEM", fem, pcg_iterations_per_frame, 5),
+    ULTRASIM_FIELD("FEM", exact, max_contact_rounds, 1),
+    ULTRASIM_FIELD("FEM", exact, max_cached_nodes, 32),
+    ULTRASIM_FIELD("FEM", corotational, pcg_iterations_per_frame, 5),
+    ULTRASIM_FIELD("MSDS", msds, stiffness_per_modulus_mm, 0.25),
+    ULTRASIM_FIELD("MSDS", msds, damping_per_stiffness_s, 0.05),
+    ULTRASIM_FIELD("MSDS", msds, time_step_s, 0.001),
+    ULTRASIM_FIELD("MSDS", msds, steps_per_frame, 1),
+    ULTRASIM_FIELD("MSDS", msds, implicit_steps_per_frame, 1),
+    ULTRASIM_FIELD("SIMULATION", collider, radius_mm, 5.0),
+    ULTRASIM_FIELD("SIMULATION", stitching, spring_stiffness_per_modulus_mm, 5.0),
+    ULTRASIM_FIELD("SIMULATION", stitching, sleep_force_mn, 0.05),
+    ULTRASIM_FIELD("SIMULATION", stitching, extra_sub_volumes_per_frame, 1),
 };
 
-#undef ULTRASIM_REAL
-#undef ULTRASIM_INT
+#undef ULTRASIM_FIELD
 
 }  // namespace
 

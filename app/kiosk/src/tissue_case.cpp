@@ -83,10 +83,9 @@ TissueCase load_tissue_case(const std::filesystem::path& case_dir) {
       lines.push_back(static_cast<std::uint32_t>(view_index[edge[1]]));
     }
   };
-  add_lines(surface_edges, c.surface_lines);
   // The tets' face diagonals put the surface edges about half a cell apart.
   const double cell_mm = c.grid.spacing_mm.minCoeff();
-  c.line_levels.push_back(c.surface_lines);
+  add_lines(surface_edges, c.line_levels.emplace_back());
   c.line_level_spacing_mm.push_back(static_cast<float>(0.5 * cell_mm));
   for (int stride = 1; stride < c.grid.nodes.maxCoeff(); stride *= 2) {
     add_lines(geometry::grid_surface_lines(c.grid, stride), c.line_levels.emplace_back());

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "evdev_records.hpp"
+
 namespace ultrasim::drivers::keyboard {
 namespace {
 
@@ -69,14 +71,6 @@ TEST(TerminalKeyDecoder, ArrowsPagesAndLettersEvenWhenSplit) {
   EXPECT_EQ(codes, (std::vector<std::uint16_t>{KEY_RIGHT, KEY_PAGEDOWN, KEY_W, KEY_D}));
 }
 
-void write_event(int fd, std::uint16_t type, std::uint16_t code, std::int32_t value) {
-  input_event e{};
-  e.type = type;
-  e.code = code;
-  e.value = value;
-  ASSERT_EQ(::write(fd, &e, sizeof e), static_cast<ssize_t>(sizeof e));
-}
-
 // Over an evdev stream (here a pipe): events move the probe; the device going away is a fault
 // with the last pose kept and the device named.
 TEST(KeyboardProbe, ReadsEvdevRecordsAndReportsTheDeviceGone) {
@@ -84,8 +78,8 @@ TEST(KeyboardProbe, ReadsEvdevRecordsAndReportsTheDeviceGone) {
   ASSERT_EQ(::pipe(fds), 0);
   KeyboardProbe probe(fds[0], KeyboardProbe::Transport::kEvdev, "keyboard test", {});
   EXPECT_EQ(probe.latest(0)->position_mm, Eigen::Vector3d(0, 0, -5));
-  write_event(fds[1], EV_KEY, KEY_LEFT, 1);
-  write_event(fds[1], EV_SYN, SYN_REPORT, 0);
+  ASSERT_TRUE(testing::write_input_event(fds[1], EV_KEY, KEY_LEFT, 1));
+  ASSERT_TRUE(testing::write_input_event(fds[1], EV_SYN, SYN_REPORT, 0));
   EXPECT_EQ(probe.latest(10'000)->position_mm.x(), 0.0);  // pressed just now
   const auto moved = probe.latest(260'000);
   EXPECT_NEAR(moved->position_mm.x(), -10.0, 1e-9);

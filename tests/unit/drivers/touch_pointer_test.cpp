@@ -5,6 +5,7 @@
 
 #include <vector>
 
+#include "evdev_records.hpp"
 #include "ultrasim/drivers/touch/evdev_pointer.hpp"
 #include "ultrasim/drivers/touch/pointer_decoder.hpp"
 
@@ -91,14 +92,6 @@ TEST(PointerDecoder, RecordsBeforeADropAreDiscarded) {
   EXPECT_FLOAT_EQ(out[0].y_px, 60.0f);
 }
 
-void write_event(int fd, std::uint16_t type, std::uint16_t code, std::int32_t value) {
-  input_event e{};
-  e.type = type;
-  e.code = code;
-  e.value = value;
-  ASSERT_EQ(::write(fd, &e, sizeof e), static_cast<ssize_t>(sizeof e));
-}
-
 // Over an evdev stream (here a pipe): records become events; the device going away is said.
 TEST(EvdevPointer, ReadsWithoutBlockingAndSaysWhenTheDeviceIsGone) {
   int fds[2];
@@ -106,9 +99,9 @@ TEST(EvdevPointer, ReadsWithoutBlockingAndSaysWhenTheDeviceIsGone) {
   ASSERT_EQ(::fcntl(fds[0], F_SETFL, O_NONBLOCK), 0);
   EvdevPointer pointer(fds[0], "/dev/input/event9", PointerDecoder(1280, 720));
   EXPECT_TRUE(pointer.poll().empty());
-  write_event(fds[1], EV_REL, REL_X, 10);
-  write_event(fds[1], EV_KEY, BTN_LEFT, 1);
-  write_event(fds[1], EV_SYN, SYN_REPORT, 0);
+  ASSERT_TRUE(testing::write_input_event(fds[1], EV_REL, REL_X, 10));
+  ASSERT_TRUE(testing::write_input_event(fds[1], EV_KEY, BTN_LEFT, 1));
+  ASSERT_TRUE(testing::write_input_event(fds[1], EV_SYN, SYN_REPORT, 0));
   const auto events = pointer.poll();
   ASSERT_EQ(events.size(), 2u);
   EXPECT_FLOAT_EQ(events[0].x_px, 650.0f);

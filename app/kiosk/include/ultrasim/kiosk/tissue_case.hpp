@@ -29,12 +29,10 @@ struct TissueCase {
   std::vector<sim::Material> tet_materials;  // one per tet ([mesh] material_mixing)
   std::vector<std::uint8_t> fixed_nodes;     // one per node: fixed faces and fixed labels
   // What the 3D view's wireframe draws: the mesh nodes on its surface (the view uploads only
-  // these: a fifth of a large mesh's nodes), and lines between them as index pairs into
-  // view_nodes: the surface's tet edges, and levels of detail, finest first (surface_lines,
-  // then the grid lines through every 1st, 2nd, 4th, ... node: geometry::grid_surface_lines)
-  // with their spacing.
+  // these: a fifth of a large mesh's nodes), and levels of detail of lines between them, as
+  // index pairs into view_nodes, finest first (the surface's tet edges, then the grid lines
+  // through every 1st, 2nd, 4th, ... node: geometry::grid_surface_lines) with their spacing.
   std::vector<std::uint32_t> view_nodes;
-  std::vector<std::uint32_t> surface_lines;
   std::vector<std::vector<std::uint32_t>> line_levels;
   std::vector<float> line_level_spacing_mm;
   std::vector<DisplaySurface> structures;  // vein, artery, nerve, bone, as the 3D view shows them
