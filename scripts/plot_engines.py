@@ -256,6 +256,8 @@ VARIANT_STYLES = {
     "all": ("every sub-volume, overlap stiffness split", "--"),
     "published-overlap": ("selective, overlap at full stiffness (published)", ":"),
     "4-exchanges": ("selective, seams exchanged 4 times a frame", "-."),
+    "coarse": ("selective, coarse correction", (0, (1, 1))),
+    "coarse-4-exchanges": ("selective, coarse correction, 4 exchanges", (0, (5, 1, 1, 1, 1, 1))),
 }
 
 

@@ -239,6 +239,11 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
   t.add(field("exchanges_per_frame", &S::exchanges_per_frame, IntegerIn<int>{1, 64},
               "Seam exchanges per frame: each sub-volume's frame in this many parts, anchors "
               "refreshed between them; must divide [msds] steps_per_frame."));
+  t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
+              "Once a frame, the smooth coarse-grid displacement that brings the whole region "
+              "closest to balance, added to every sub-volume: faster relaxation, but presses end "
+              "elsewhere than one piece under the stick contact (false: the seams alone, as "
+              "published)."));
   t.add(field("sleep_force_mn", &S::sleep_force_mn, RealIn::closed(0.0, 1e6),
               "A sub-volume out of reach sleeps when its seams pull less than this (mN) ..."));
   t.add(field("sleep_motion_mm", &S::sleep_motion_mm, RealIn::closed(0.0, 1e3),

@@ -129,6 +129,18 @@ Eigen::Vector3d LinearFem::nodal_force_mn(int node) const {
   return f;
 }
 
+void LinearFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
+  forces_mn.setZero();
+  forces_mn.noalias() -= stiffness_ * u_;
+}
+
+void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
+  for (int node = 0; node < node_count(); ++node) {
+    if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
+  }
+  update_deformed();
+}
+
 void LinearFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
   check_anchor_springs(anchors, node_count());
   for (int node : anchored_nodes_) {

@@ -921,6 +921,53 @@ void MsdsEngine::internal_forces_mn(Eigen::VectorXd& forces_mn) const {
   }
 }
 
+Eigen::SparseMatrix<double, Eigen::RowMajor> MsdsEngine::rest_stiffness_mn_per_mm() const {
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(36 * springs_.size());
+  for (const auto& s : springs_) {
+    const Eigen::Vector3d n = (rest_[s.b] - rest_[s.a]) / s.rest_length_mm;
+    const Eigen::Matrix3d k = s.stiffness_mn_per_mm * n * n.transpose();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        entries.emplace_back(3 * s.a + r, 3 * s.a + c, k(r, c));
+        entries.emplace_back(3 * s.b + r, 3 * s.b + c, k(r, c));
+        entries.emplace_back(3 * s.a + r, 3 * s.b + c, -k(r, c));
+        entries.emplace_back(3 * s.b + r, 3 * s.a + c, -k(r, c));
+      }
+    }
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> k(3 * node_count(), 3 * node_count());
+  k.setFromTriplets(entries.begin(), entries.end());
+  return k;
+}
+
+void MsdsEngine::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
+  for (int i = 0; i < node_count(); ++i) {
+    Eigen::Vector3d elastic = Eigen::Vector3d::Zero();
+    for (int e = adjacency_begin_[i]; e < adjacency_begin_[i + 1]; ++e) {
+      const MsdsSpring& s = springs_[adjacency_spring_[e]];
+      double length = 0.0;
+      const Eigen::Vector3d dir =
+          spring_direction(i, adjacency_other_[e], s.rest_length_mm, length);
+      elastic += s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir;
+    }
+    forces_mn.segment<3>(3 * i) = elastic;
+  }
+}
+
+void MsdsEngine::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
+  for (int i = 0; i < node_count(); ++i) {
+    if (!moves(i)) continue;
+    const Eigen::Vector3d du = du_mm.segment<3>(3 * i);
+    position_.set(i, position_[i] + du);
+    // The bound on the node's distance to the probe holds for a node that moved at most this far.
+    probe_clearance_mm_[i] -= du.lpNorm<1>();
+  }
+  update_block_min_clearances();
+  sync_float_state();
+  publish_state();
+}
+
 double MsdsEngine::kinetic_energy_uj() const {
   double energy = 0.0;
   for (int i = 0; i < node_count(); ++i) energy += 0.5 * mass_kg_[i] * velocity_[i].squaredNorm();

@@ -76,6 +76,16 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   }
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   build_copies(tet_materials);
+  if (settings_.coarse_correction) {
+    std::vector<SubVolumeBox> boxes;
+    std::vector<const DeformationEngine*> engines;
+    for (const auto& sub : subs_) {
+      boxes.push_back(sub.box);
+      engines.push_back(sub.engine.get());
+    }
+    coarse_ = std::make_unique<CoarseCorrection>(grid_, boxes, engines);
+    corrected_.reserve(subs_.size());
+  }
   name_ = "stitched " + std::string(subs_.front().engine->name()) + " (" +
           std::to_string(subs_.size()) + " sub-volumes)";
   schedule_.reserve(subs_.size());
@@ -223,6 +233,10 @@ EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt
 EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double frame_dt_s,
                                             const StepBudget& may_continue) {
   for (auto& sub : subs_) sub.stepped = false;
+  // The coarse step first, from the shape the last frame left: the sub-volumes' own steps then
+  // smooth what it leaves near the probe and at the seams, and the contacts are decided on their
+  // answer, not on the coarse field's.
+  correct_coarsely();
   const int touched = plan_frame(probe);
   const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
   // The sub-volumes the probe may touch always step: skipping one would let the probe pass
@@ -248,6 +262,7 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
                  part_dt_s, false);
     }
   }
+  update_coarse_residuals(std::span(schedule_).first(next));
   EngineStepStats out;
   for (const auto& sub : subs_) {
     if (!sub.stepped) continue;
@@ -328,7 +343,7 @@ bool StitchedVolume::within_reach(const SubVolume& sub, const ProbeCollider& pro
   // within reach when the block's centre is farther than its half diagonal.
   for (std::size_t b = 0; b < sub.block_center_mm.size(); ++b) {
     if (probe.signed_distance_mm(sub.block_center_mm[b]) <=
-        sub.block_half_diagonal_mm[b] + kReachMarginMm) {
+        sub.block_half_diagonal_mm[b] + kReachMarginMm + stats_.coarse_move_mm) {
       return true;
     }
   }
@@ -392,9 +407,67 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
   }
 }
 
+void StitchedVolume::update_coarse_residuals(std::span<const int> stepped) {
+  if (!coarse_) return;
+  const auto update = [&](int i) { coarse_->update(stepped[i], *subs_[stepped[i]].engine); };
+  if (jobs_ != nullptr && stepped.size() > 1) {
+    hal::parallel_for(*jobs_, static_cast<int>(stepped.size()), update);
+  } else {
+    for (int i = 0; i < static_cast<int>(stepped.size()); ++i) update(i);
+  }
+}
+
+void StitchedVolume::correct_coarsely() {
+  stats_.coarse_move_mm = 0.0;
+  stats_.sub_volumes_corrected = 0;
+  for (auto& sub : subs_) sub.corrected = false;
+  if (!coarse_) return;
+  for (int g : shared_nodes_) {
+    if (fixed_[g]) continue;
+    const int begin = copies_begin_[g], end = copies_begin_[g + 1];
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int c = begin; c < end; ++c) sum += copy_position(copies_[c]);
+    int still = 0;
+    for (int c = begin; c < end; ++c) still += coarse_->left_out(copies_[c].sub, copies_[c].local);
+    if (still > 0 && still < end - begin) {
+      const int x = g % grid_.nodes.x(), y = (g / grid_.nodes.x()) % grid_.nodes.y(),
+                z = g / (grid_.nodes.x() * grid_.nodes.y());
+      coarse_->add_uneven_seam({x, y, z},
+                               seam_stiffness_mn_per_mm_[g] * still * (end - begin - still));
+    }
+    for (int c = begin; c < end; ++c) {
+      // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+      coarse_->add_seam_force(
+          copies_[c].sub, copies_[c].local,
+          seam_stiffness_mn_per_mm_[g] * (sum - (end - begin) * copy_position(copies_[c])));
+    }
+  }
+  if (!coarse_->solve()) return;
+  // A move smaller than a sleeping sub-volume's own motion is not worth waking it for.
+  corrected_.clear();
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    const double move = coarse_->largest_move_mm(s);
+    stats_.coarse_move_mm = std::max(stats_.coarse_move_mm, move);
+    if (move > settings_.sleep_motion_mm) corrected_.push_back(s);
+  }
+  const auto apply = [&](int i) {
+    SubVolume& sub = subs_[corrected_[i]];
+    coarse_->apply(corrected_[i], *sub.engine);
+    sub.positions_mm = sub.engine->deformed_positions_mm();
+    sub.corrected = true;
+    sub.asleep = false;
+  };
+  if (jobs_ != nullptr && corrected_.size() > 1) {
+    hal::parallel_for(*jobs_, static_cast<int>(corrected_.size()), apply);
+  } else {
+    for (int i = 0; i < static_cast<int>(corrected_.size()); ++i) apply(i);
+  }
+  stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
+}
+
 void StitchedVolume::finish_frame() {
   for (auto& sub : subs_) {
-    if (!sub.stepped) continue;
+    if (!sub.stepped && !sub.corrected) continue;
     const auto x = sub.engine->deformed_positions_mm();
     for (auto& b : sub.block_bounds) b.setEmpty();
     double motion_squared = 0.0;
@@ -471,6 +544,9 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
     sub.asleep = false;
     sub.stepped = true;
+  }
+  if (coarse_) {
+    for (int s = 0; s < sub_volume_count(); ++s) coarse_->update(s, *subs_[s].engine);
   }
   finish_frame();
   for (auto& sub : subs_) {

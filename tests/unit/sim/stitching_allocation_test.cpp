@@ -22,26 +22,30 @@ TEST(StitchingAllocation, AStitchedFrameDoesNotAllocateOnceWarmedUp) {
   hal::InlineJobSystem jobs;
   for (auto method : {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
     for (bool selective : {true, false}) {
-      StitchingSettings stitching;
-      stitching.sub_volumes = {3, 2, 1};
-      stitching.selective = selective;
-      StitchedVolume stitched(grid, materials, fixed, method, EngineSettings{}, stitching, &jobs);
-      // Warm up on the deepest press (the engines' largest contact sets), then press again.
-      const auto probe_at = [](double depth_mm) {
-        return ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(17, 9, depth_mm - 6), 6});
-      };
-      for (int f = 0; f < 8; ++f) {
-        const ProbeCollider p = probe_at(0.25 * f);
-        stitched.step(&p, 1.0 / 60);
+      for (bool coarse : {false, true}) {
+        StitchingSettings stitching;
+        stitching.sub_volumes = {3, 2, 1};
+        stitching.selective = selective;
+        stitching.coarse_correction = coarse;
+        StitchedVolume stitched(grid, materials, fixed, method, EngineSettings{}, stitching, &jobs);
+        // Warm up on the deepest press (the engines' largest contact sets), then press again.
+        const auto probe_at = [](double depth_mm) {
+          return ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(17, 9, depth_mm - 6), 6});
+        };
+        for (int f = 0; f < 8; ++f) {
+          const ProbeCollider p = probe_at(0.25 * f);
+          stitched.step(&p, 1.0 / 60);
+        }
+        long allocations = 0;
+        for (int f = 0; f < 8; ++f) {
+          const ProbeCollider p = probe_at(2.0 - 0.25 * f);
+          ::ultrasim::testing::start_counting_allocations();
+          stitched.step(&p, 1.0 / 60);
+          allocations += ::ultrasim::testing::stop_counting_allocations();
+        }
+        EXPECT_EQ(allocations, 0) << stitched.name() << (selective ? " selective" : " all")
+                                  << (coarse ? ", coarse correction" : "");
       }
-      long allocations = 0;
-      for (int f = 0; f < 8; ++f) {
-        const ProbeCollider p = probe_at(2.0 - 0.25 * f);
-        ::ultrasim::testing::start_counting_allocations();
-        stitched.step(&p, 1.0 / 60);
-        allocations += ::ultrasim::testing::stop_counting_allocations();
-      }
-      EXPECT_EQ(allocations, 0) << stitched.name() << (selective ? " selective" : " all");
     }
   }
 }

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <functional>
 #include <span>
 #include <stdexcept>
@@ -103,6 +104,32 @@ class DeformationEngine {
   // std::logic_error where not supported.
   virtual void set_anchor_springs(std::span<const AnchorSpring> /*anchors*/) {
     throw std::logic_error(std::string(name()) + " cannot take anchor springs (volume stitching)");
+  }
+
+  // What a stitched volume's coarse correction (coarse_correction.hpp) needs of a method that
+  // takes anchor springs; the others throw std::logic_error.
+  //
+  // The tissue's stiffness linearised about rest (3·nodes square, node-major x,y,z, mN/mm): the
+  // FEM's K, the springs' Σ k n nᵀ. Fixed and held nodes included. Allocates.
+  virtual Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const {
+    throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
+  }
+  // The tissue's own force on every node at the current shape, mN (−K u for the FEM; the springs'
+  // pull for the MSDS), without anchors, damping or the probe. `forces_mn` must have 3 × node
+  // count entries. Does not allocate; const, so one engine per thread may call it in parallel.
+  virtual void tissue_forces_mn(Eigen::VectorXd& /*forces_mn*/) const {
+    throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
+  }
+  // Whether the node is fixed or held on the probe after the last step (it does not move under
+  // displace_free_nodes_mm()).
+  virtual bool holds_node(int /*node*/) const {
+    throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
+  }
+  // Moves every node neither fixed nor held by `du_mm` (3 × node count entries, finite), keeping
+  // the contacts and, for the MSDS, the velocities: a correction between frames, not a new start.
+  // Does not allocate.
+  virtual void displace_free_nodes_mm(const Eigen::VectorXd& /*du_mm*/) {
+    throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
 };
 

@@ -67,6 +67,17 @@ class LinearFem final : public DeformationEngine {
   bool supports_anchor_springs() const override { return true; }
   void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
 
+  // Coarse correction of a stitched volume: K; −K u; fixed, prescribed or in contact; u += du on
+  // the free nodes (the next step warm-starts from it and finds the contacts as usual).
+  Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override {
+    return stiffness_;
+  }
+  void tissue_forces_mn(Eigen::VectorXd& forces_mn) const override;
+  bool holds_node(int node) const override {
+    return fixed_[node] != 0 || prescribed_[node] != 0 || in_contact_[node] != 0;
+  }
+  void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
+
   // Nodal forces K u (− the anchor's pull) on node n, mN: the reaction where the node is
   // constrained, ~0 where free.
   Eigen::Vector3d nodal_force_mn(int node) const;

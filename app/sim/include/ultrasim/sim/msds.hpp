@@ -164,6 +164,14 @@ class MsdsEngine final : public DeformationEngine {
   bool supports_anchor_springs() const override { return true; }
   void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
 
+  // Coarse correction of a stitched volume: the springs' Σ k n nᵀ at rest; their pull (no
+  // anchors, no damping); pinned or held on the probe by the last step; positions += du on the
+  // moving nodes, velocities kept (the probe-distance bounds are lowered by the move).
+  Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override;
+  void tissue_forces_mn(Eigen::VectorXd& forces_mn) const override;
+  bool holds_node(int node) const override { return !moves(node); }
+  void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
+
   // Runs `steps` integration steps of `dt_s` (with the probe's contact) and nothing else: no
   // divergence check, no recovery. For measuring stability limits in tests and benches.
   void integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps);

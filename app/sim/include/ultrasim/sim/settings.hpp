@@ -161,6 +161,14 @@ struct StitchingSettings {
   // between them, so a disturbance crosses this many seams a frame (published: several
   // iterations, then the stitching forces). Must divide MsdsSettings::steps_per_frame.
   int exchanges_per_frame = 1;
+  // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
+  // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
+  // added to every sub-volume, so a disturbance reaches across the region in one frame instead
+  // of one seam a frame. Off by default: it relaxes a region tens of times faster, but under the
+  // published stick contact it ends presses elsewhere than one piece (docs/accuracy.md). Costs
+  // each stepped sub-volume one force evaluation and the frame a dense solve of 3 × coarse nodes
+  // (216 for 5 × 5 × 1).
+  bool coarse_correction = false;
   // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
   // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
   double sleep_force_mn = 0.05;

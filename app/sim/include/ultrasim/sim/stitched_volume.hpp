@@ -12,6 +12,7 @@
 
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/coarse_correction.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/settings.hpp"
@@ -30,6 +31,10 @@ struct StitchStepStats {
   int sub_volumes_deferred = 0;    // due but left for a later frame (selection or budget)
   double max_seam_force_mn = 0.0;  // largest zero-length spring force after the frame
   double max_gap_mm = 0.0;         // largest distance between copies of a shared node
+  // The coarse correction's largest nodal move this frame, mm (0: off or nothing to correct),
+  // and the sub-volumes it moved (those not stepped among them are woken).
+  double coarse_move_mm = 0.0;
+  int sub_volumes_corrected = 0;
 };
 
 // Volume stitching (published ch. 5): a region meshed as one grid, split into overlapping
@@ -39,8 +44,9 @@ struct StitchStepStats {
 // k × (copies − 1) toward the mean of the other copies, the same force as the pairwise springs.
 // A frame alternates as published: every stepped sub-volume first takes its anchors from the
 // others' current positions (all at once, so the sub-volumes step in parallel on the job system,
-// one sub-volume per task), then steps. The region shows each shared node at the mean of its
-// copies (the published midpoint fix), so no gap shows; the gap before that is reported.
+// one sub-volume per task), then steps. With [stitching] coarse_correction, a coarse-grid step
+// over the whole region follows (CoarseCorrection). The region shows each shared node at the mean
+// of its copies (the published midpoint fix), so no gap shows; the gap before that is reported.
 //
 // As a DeformationEngine it is one engine on the whole grid's mesh: positions, displacements and
 // the live switch are on the grid's nodes. Units as the engines'. The frame thread owns it; step()
@@ -112,6 +118,7 @@ class StitchedVolume final : public DeformationEngine {
     bool asleep = false;
     bool stepped = false;
     bool touched = false;
+    bool corrected = false;  // moved by this frame's coarse correction
     EngineStepStats last_stats;
   };
   // A copy of a grid node: the sub-volume and its local node.
@@ -139,6 +146,12 @@ class StitchedVolume final : public DeformationEngine {
   // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
   // shown positions (copies' mean) and displacements.
   void finish_frame();
+  // The coarse correction's share of the residual of the sub-volumes that stepped.
+  void update_coarse_residuals(std::span<const int> stepped);
+  // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
+  // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
+  // reach test widens by the move.
+  void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
 
   geometry::GridSpec grid_;
@@ -154,6 +167,8 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<double> seam_stiffness_mn_per_mm_;
   std::vector<int> shared_nodes_;  // grid nodes with more than one copy
   std::vector<std::uint8_t> fixed_;
+  std::unique_ptr<CoarseCorrection> coarse_;  // null: off
+  std::vector<int> corrected_;                // per frame, sized once
 
   // Per frame, sized once.
   std::vector<int> schedule_;
