@@ -193,11 +193,7 @@ void CoarseCorrection::update(int s, const DeformationEngine& engine) {
     sub.held[l] = sub.fixed[l] || engine.holds_node(l);
     if (sub.held[l] && !sub.fixed[l]) sub.held_free.push_back(l);
   }
-  if (sub.held_free.empty()) {
-    sub.coarse_stiffness = sub.rest_coarse_stiffness;
-  } else {
-    update_held_coarse_stiffness(sub);
-  }
+  if (!sub.held_free.empty()) update_held_coarse_stiffness(sub);
   engine.tissue_forces_mn(sub.forces);
   sub.residual.setZero();
   for (int l = 0; l < n; ++l) {
@@ -285,7 +281,7 @@ void CoarseCorrection::apply(int s, DeformationEngine& engine) {
   }
   engine.displace_free_nodes_mm(sub.move);
   // The residual's change under the move, exact for the linear FEM (f = −K u).
-  sub.residual.noalias() -= sub.coarse_stiffness * sub.correction;
+  sub.residual.noalias() -= coarse_stiffness(sub) * sub.correction;
 }
 
 }  // namespace ultrasim::sim

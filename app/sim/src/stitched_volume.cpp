@@ -34,6 +34,17 @@ constexpr double kReachMarginMm = 0.5;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
+// f(0) ... f(count − 1), one task each on the job system where there is one and more than one
+// task (sub-volumes are independent within a batch).
+template <typename F>
+void for_each_task(hal::JobSystem* jobs, int count, F&& f) {
+  if (jobs != nullptr && count > 1) {
+    hal::parallel_for(*jobs, count, f);
+  } else {
+    for (int i = 0; i < count; ++i) f(i);
+  }
+}
+
 }  // namespace
 
 bool stitchable(EngineKind method) {
@@ -226,6 +237,12 @@ Eigen::Vector3d StitchedVolume::copy_position(const Copy& c) const {
   return subs_[c.sub].positions_mm[c.local];
 }
 
+Eigen::Vector3d StitchedVolume::copies_sum(int g) const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) sum += copy_position(copies_[c]);
+  return sum;
+}
+
 EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt_s) {
   return step_within(probe, frame_dt_s, {});
 }
@@ -400,21 +417,13 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
     sub.positions_mm = sub.engine->deformed_positions_mm();
     sub.stepped = true;
   };
-  if (jobs_ != nullptr && subs.size() > 1) {
-    hal::parallel_for(*jobs_, static_cast<int>(subs.size()), step_one);
-  } else {
-    for (int i = 0; i < static_cast<int>(subs.size()); ++i) step_one(i);
-  }
+  for_each_task(jobs_, static_cast<int>(subs.size()), step_one);
 }
 
 void StitchedVolume::update_coarse_residuals(std::span<const int> stepped) {
   if (!coarse_) return;
   const auto update = [&](int i) { coarse_->update(stepped[i], *subs_[stepped[i]].engine); };
-  if (jobs_ != nullptr && stepped.size() > 1) {
-    hal::parallel_for(*jobs_, static_cast<int>(stepped.size()), update);
-  } else {
-    for (int i = 0; i < static_cast<int>(stepped.size()); ++i) update(i);
-  }
+  for_each_task(jobs_, static_cast<int>(stepped.size()), update);
 }
 
 void StitchedVolume::correct_coarsely() {
@@ -425,8 +434,7 @@ void StitchedVolume::correct_coarsely() {
   for (int g : shared_nodes_) {
     if (fixed_[g]) continue;
     const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (int c = begin; c < end; ++c) sum += copy_position(copies_[c]);
+    const Eigen::Vector3d sum = copies_sum(g);
     int still = 0;
     for (int c = begin; c < end; ++c) still += coarse_->left_out(copies_[c].sub, copies_[c].local);
     if (still > 0 && still < end - begin) {
@@ -457,11 +465,7 @@ void StitchedVolume::correct_coarsely() {
     sub.corrected = true;
     sub.asleep = false;
   };
-  if (jobs_ != nullptr && corrected_.size() > 1) {
-    hal::parallel_for(*jobs_, static_cast<int>(corrected_.size()), apply);
-  } else {
-    for (int i = 0; i < static_cast<int>(corrected_.size()); ++i) apply(i);
-  }
+  for_each_task(jobs_, static_cast<int>(corrected_.size()), apply);
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
@@ -489,8 +493,7 @@ void StitchedVolume::finish_frame() {
   stats_.max_seam_force_mn = 0.0;
   for (int g : shared_nodes_) {
     const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (int c = begin; c < end; ++c) sum += copy_position(copies_[c]);
+    const Eigen::Vector3d sum = copies_sum(g);
     const int count = end - begin;
     shown_[g] = sum / count;  // the published midpoint: no gap shows
     if (fixed_[g]) continue;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <vector>
 
+#include "slab_region.hpp"
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -17,29 +18,14 @@
 namespace ultrasim::sim {
 namespace {
 
-struct Region {
-  geometry::GridSpec grid;
-  geometry::TetMesh mesh;
-  std::vector<Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
+using Region = testing::SlabRegion;
+using testing::max_norm;
 
-// A slab, 2 mm spacing, softer on top, fixed at its deepest face.
+// A slab, softer on top.
 Region make_region(const Eigen::Vector3i& nodes) {
-  Region r;
-  r.grid.nodes = nodes;
-  r.grid.spacing_mm = Eigen::Vector3d::Constant(2.0);
-  r.mesh = geometry::make_grid_tet_mesh(r.grid);
-  const auto& p = r.mesh.rest_positions_mm;
-  for (const auto& t : r.mesh.tets) {
-    const double z = (p[t[0]].z() + p[t[1]].z() + p[t[2]].z() + p[t[3]].z()) / 4;
-    r.materials.push_back(z < 4 ? Material{1, "fat", 20.0, 0.45}
-                                : Material{2, "muscle", 50.0, 0.45});
-  }
-  const double deepest = 2.0 * (nodes.z() - 1);
-  r.fixed.assign(p.size(), 0);
-  for (std::size_t n = 0; n < p.size(); ++n) r.fixed[n] = p[n].z() == deepest;
-  return r;
+  return testing::make_slab_region(nodes, [](const Eigen::Vector3d& c) {
+    return c.z() < 4 ? Material{1, "fat", 20.0, 0.45} : Material{2, "muscle", 50.0, 0.45};
+  });
 }
 
 // A smooth field, largest at the skin, zero at the fixed base.
@@ -52,12 +38,6 @@ Eigen::VectorXd smooth_field(const Region& r) {
                           std::sin(p.x() / 13.0 + 0.3) * std::cos(p.y() / 17.0);
   }
   return u;
-}
-
-double max_norm(const Eigen::VectorXd& u) {
-  double m = 0.0;
-  for (Eigen::Index i = 0; i < u.size(); i += 3) m = std::max(m, u.segment<3>(i).norm());
-  return m;
 }
 
 TEST(CoarseCorrection, OnOnePieceItIsTheGalerkinStepWrittenOutWithDenseMatrices) {

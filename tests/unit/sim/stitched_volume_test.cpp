@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <set>
 
+#include "slab_region.hpp"
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -19,43 +20,21 @@ namespace {
 
 using geometry::GridSpec;
 
-// A slab of tissue: skin at z = 0, fixed at its deepest face, 2 mm spacing.
-struct Region {
-  GridSpec grid;
-  geometry::TetMesh mesh;
-  std::vector<Material> materials;
-  std::vector<std::uint8_t> fixed;
-};
+using Region = testing::SlabRegion;
+using testing::max_norm;
 
+// A slab with a stiffer band across the seam, so the seam carries unequal materials.
 Region make_region(const Eigen::Vector3i& nodes) {
-  Region r;
-  r.grid.nodes = nodes;
-  r.grid.spacing_mm = Eigen::Vector3d::Constant(2.0);
-  r.mesh = geometry::make_grid_tet_mesh(r.grid);
-  const double deepest = 2.0 * (nodes.z() - 1);
-  Material tissue{1, "muscle", 30.0, 0.45};
-  Material vessel_wall{2, "wall", 90.0, 0.45};
-  const auto& p = r.mesh.rest_positions_mm;
-  for (const auto& t : r.mesh.tets) {
-    const Eigen::Vector3d c = (p[t[0]] + p[t[1]] + p[t[2]] + p[t[3]]) / 4.0;
-    // A stiffer band across the seam, so the seam carries unequal materials.
-    r.materials.push_back(std::abs(c.z() - 5.0) < 1.5 ? vessel_wall : tissue);
-  }
-  r.fixed.assign(p.size(), 0);
-  for (int n = 0; n < r.mesh.node_count(); ++n) r.fixed[n] = p[n].z() == deepest;
-  return r;
+  return testing::make_slab_region(nodes, [](const Eigen::Vector3d& c) {
+    return std::abs(c.z() - 5.0) < 1.5 ? Material{2, "wall", 90.0, 0.45}
+                                       : Material{1, "muscle", 30.0, 0.45};
+  });
 }
 
 // The published sphere probe, its lowest point `depth_mm` below the skin at (x, y).
 ProbeCollider sphere_probe(double x_mm, double y_mm, double depth_mm, double radius_mm = 8.0) {
   return ProbeCollider::sphere(
       SphereCollider{Eigen::Vector3d(x_mm, y_mm, depth_mm - radius_mm), radius_mm});
-}
-
-double max_norm(const Eigen::VectorXd& u) {
-  double m = 0.0;
-  for (Eigen::Index i = 0; i < u.size(); i += 3) m = std::max(m, u.segment<3>(i).norm());
-  return m;
 }
 
 double max_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {

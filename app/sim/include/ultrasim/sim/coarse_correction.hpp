@@ -83,13 +83,17 @@ class CoarseCorrection {
     std::vector<std::uint8_t> held;         // per local node, fixed included, as of update()
     std::vector<int> held_free;             // held nodes that are not fixed
     Eigen::MatrixXd rest_coarse_stiffness;  // fixed nodes left out
-    Eigen::MatrixXd coarse_stiffness;       // held nodes left out too
+    Eigen::MatrixXd coarse_stiffness;       // held nodes left out too; valid if held_free
     Eigen::VectorXd residual;               // Pᵀ D f, local coarse DOFs
     Eigen::VectorXd seam_residual;          // Pᵀ D of the seams' pull, this frame
     Eigen::VectorXd correction;             // the last solve()'s Δc, local coarse DOFs
     Eigen::VectorXd forces, move, row;      // scratch
   };
 
+  // The sub-volume's coarse stiffness as of update(): the rest one unless the probe holds nodes.
+  static const Eigen::MatrixXd& coarse_stiffness(const Sub& sub) {
+    return sub.held_free.empty() ? sub.rest_coarse_stiffness : sub.coarse_stiffness;
+  }
   Weights weights(const Eigen::Vector3i& grid_node) const;
   // The local coarse DOF of a global coarse node's axis `d` in `sub`.
   int local_dof(const Sub& sub, int coarse_node, int d) const;

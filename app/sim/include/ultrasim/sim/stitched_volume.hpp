@@ -153,6 +153,8 @@ class StitchedVolume final : public DeformationEngine {
   // reach test widens by the move.
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
+  // Σ of the positions of grid node g's copies.
+  Eigen::Vector3d copies_sum(int g) const;
 
   geometry::GridSpec grid_;
   geometry::TetMesh mesh_;
