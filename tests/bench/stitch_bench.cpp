@@ -7,7 +7,8 @@
 // Methods: the published PCG FEM (20 iterations) and MSDS (explicit Euler, 20 steps a frame),
 // and the implicit MSDS. Counters: sub-volumes stepped a frame, the largest frame (the target
 // is every frame inside 16.7 ms at 25 × 15³ on 2 threads), the seam gap. After the runs, a
-// summary of medians with ratios: stitched over one piece (5.1), selective over all (5.2/5.3).
+// summary of medians with ratios: stitched over one piece (5.1), selective over all (5.2/5.3),
+// and the coarse correction on over off (25 sub-volumes, selective, 2 threads).
 //   build/ci/tests/bench/stitch_bench [--benchmark_filter=...]
 
 #include <benchmark/benchmark.h>
@@ -83,15 +84,15 @@ void BM_OnePiece(benchmark::State& state) {
   state.counters["tets"] = r.mesh.tet_count();
 }
 
-void BM_Stitched(benchmark::State& state) {
-  const int per_side = static_cast<int>(state.range(1));
-  const int sub_nodes = static_cast<int>(state.range(2));
+void run_stitched(benchmark::State& state, int per_side, int sub_nodes, bool selective, int threads,
+                  bool coarse_correction) {
   const int side = per_side * sub_nodes - 2 * (per_side - 1);
   const Region& r = region(side, sub_nodes);
-  drivers::posix::ThreadPool jobs(static_cast<int>(state.range(4)));
+  drivers::posix::ThreadPool jobs(threads);
   sim::StitchingSettings stitching;
   stitching.sub_volumes = {per_side, per_side, 1};
-  stitching.selective = state.range(3) != 0;
+  stitching.selective = selective;
+  stitching.coarse_correction = coarse_correction;
   sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method(state), {}, stitching, &jobs);
   double stepped = 0.0, gap = 0.0;
   int frames = 0;
@@ -110,6 +111,16 @@ void BM_Stitched(benchmark::State& state) {
   state.counters["max_gap_mm"] = gap;
   state.counters["tets"] = tets;
   state.counters["nodes"] = stitched.sub_volume_count() * sub_nodes * sub_nodes * sub_nodes;
+}
+
+void BM_Stitched(benchmark::State& state) {
+  run_stitched(state, static_cast<int>(state.range(1)), static_cast<int>(state.range(2)),
+               state.range(3) != 0, static_cast<int>(state.range(4)), false);
+}
+
+// The coarse correction's price: 25 sub-volumes, selective, 2 threads, without and with it.
+void BM_StitchedCoarse(benchmark::State& state) {
+  run_stitched(state, 5, static_cast<int>(state.range(1)), true, 2, state.range(2) != 0);
 }
 
 constexpr int kMethods[] = {static_cast<int>(sim::EngineKind::kPcgFem),
@@ -139,6 +150,11 @@ void stitched_args(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_OnePiece)->Apply(one_piece_args)->Unit(benchmark::kMillisecond)->Iterations(40);
 BENCHMARK(BM_Stitched)->Apply(stitched_args)->Unit(benchmark::kMillisecond)->Iterations(60);
+BENCHMARK(BM_StitchedCoarse)
+    ->ArgNames({"method", "sub_nodes", "coarse"})
+    ->ArgsProduct({{kMethods[0], kMethods[1], kMethods[2]}, {12, 15}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(60);
 
 // The console output as usual, then the published tables' figures as medians and ratios.
 class TableReporter : public bench::FrameTimeReporter {
@@ -171,6 +187,20 @@ class TableReporter : public bench::FrameTimeReporter {
           std::printf(" %8.2f (%7.2f)", sel, all);
         }
         std::printf("\n");
+      }
+    }
+    std::printf("\nCoarse correction: ms per frame, 25 x n^3, selective, 2 threads\n");
+    std::printf("%-14s %9s %8s %8s %7s\n", "method", "sub_nodes", "off", "on", "ratio");
+    for (int m : kMethods) {
+      for (int sub_nodes : {12, 15}) {
+        const auto name = [&](int coarse) {
+          return "BM_StitchedCoarse/method:" + std::to_string(m) +
+                 "/sub_nodes:" + std::to_string(sub_nodes) + "/coarse:" + std::to_string(coarse);
+        };
+        const double off = median_ms_by_prefix(name(0)), on = median_ms_by_prefix(name(1));
+        if (off > 0.0 && on > 0.0) {
+          std::printf("%-14s %9d %8.2f %8.2f %7.3f\n", key(m), sub_nodes, off, on, on / off);
+        }
       }
     }
   }

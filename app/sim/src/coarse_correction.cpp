@@ -74,6 +74,8 @@ CoarseCorrection::CoarseCorrection(const geometry::GridSpec& grid,
     sub.row = Eigen::VectorXd::Zero(local_dofs);
     sub.forces = Eigen::VectorXd::Zero(3 * n);
     sub.move = Eigen::VectorXd::Zero(3 * n);
+    sub.weights.resize(n);
+    for (int l = 0; l < n; ++l) sub.weights[l] = local_weights(sub, l);
     build_rest_coarse_stiffness(sub);
     sub.coarse_stiffness = sub.rest_coarse_stiffness;
     for (int i = 0; i < local_dofs; ++i) {
@@ -133,8 +135,7 @@ int CoarseCorrection::global_dof(const Sub& sub, int local) const {
 void CoarseCorrection::build_rest_coarse_stiffness(Sub& sub) const {
   // Pᵀ K P row by row of K: row r of K P, then its outer product with row r of P.
   const int n = static_cast<int>(sub.fixed.size());
-  std::vector<Weights> w(n);
-  for (int l = 0; l < n; ++l) w[l] = local_weights(sub, l);
+  const std::vector<Weights>& w = sub.weights;
   sub.rest_coarse_stiffness = Eigen::MatrixXd::Zero(sub.row.size(), sub.row.size());
   for (int r = 0; r < 3 * n; ++r) {
     if (sub.fixed[r / 3]) continue;
@@ -158,7 +159,7 @@ void CoarseCorrection::update_held_coarse_stiffness(Sub& sub) const {
   // rows h (p_h: row h of P; g_h: row h of K P): the rows the probe holds, not the whole K.
   sub.coarse_stiffness = sub.rest_coarse_stiffness;
   for (int node : sub.held_free) {
-    const Weights wn = local_weights(sub, node);
+    const Weights& wn = sub.weights[node];
     for (int d = 0; d < 3; ++d) {
       const int r = 3 * node + d;
       sub.row.setZero();
@@ -166,7 +167,7 @@ void CoarseCorrection::update_held_coarse_stiffness(Sub& sub) const {
            ++it) {
         const int j = static_cast<int>(it.col());
         if (sub.fixed[j / 3]) continue;
-        const Weights wj = local_weights(sub, j / 3);
+        const Weights& wj = sub.weights[j / 3];
         for (int b = 0; b < 8; ++b) sub.row[3 * wj.coarse[b] + j % 3] += it.value() * wj.weight[b];
         if (!sub.held[j / 3]) continue;
         for (int a = 0; a < 8; ++a) {
@@ -198,7 +199,7 @@ void CoarseCorrection::update(int s, const DeformationEngine& engine) {
   sub.residual.setZero();
   for (int l = 0; l < n; ++l) {
     if (sub.held[l]) continue;
-    const Weights w = local_weights(sub, l);
+    const Weights& w = sub.weights[l];
     for (int a = 0; a < 8; ++a) {
       sub.residual.segment<3>(3 * w.coarse[a]) += w.weight[a] * sub.forces.segment<3>(3 * l);
     }
@@ -208,7 +209,7 @@ void CoarseCorrection::update(int s, const DeformationEngine& engine) {
 void CoarseCorrection::add_seam_force(int s, int local_node, const Eigen::Vector3d& force_mn) {
   Sub& sub = subs_[s];
   if (sub.held[local_node]) return;
-  const Weights w = local_weights(sub, local_node);
+  const Weights& w = sub.weights[local_node];
   for (int a = 0; a < 8; ++a)
     sub.seam_residual.segment<3>(3 * w.coarse[a]) += w.weight[a] * force_mn;
 }
@@ -274,7 +275,7 @@ void CoarseCorrection::apply(int s, DeformationEngine& engine) {
   Sub& sub = subs_[s];
   const int n = static_cast<int>(sub.fixed.size());
   for (int l = 0; l < n; ++l) {
-    const Weights w = local_weights(sub, l);
+    const Weights& w = sub.weights[l];
     Eigen::Vector3d move = Eigen::Vector3d::Zero();
     for (int a = 0; a < 8; ++a) move += w.weight[a] * sub.correction.segment<3>(3 * w.coarse[a]);
     sub.move.segment<3>(3 * l) = move;

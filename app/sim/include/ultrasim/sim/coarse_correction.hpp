@@ -79,6 +79,7 @@ class CoarseCorrection {
     Eigen::Vector3i coarse_first;  // the coarse nodes its nodes' weights reach
     Eigen::Vector3i coarse_nodes;
     Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness;
+    std::vector<Weights> weights;           // per local node: its local coarse nodes and weights
     std::vector<std::uint8_t> fixed;        // per local node
     std::vector<std::uint8_t> held;         // per local node, fixed included, as of update()
     std::vector<int> held_free;             // held nodes that are not fixed

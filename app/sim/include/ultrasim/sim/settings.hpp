@@ -164,10 +164,11 @@ struct StitchingSettings {
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
   // added to every sub-volume, so a disturbance reaches across the region in one frame instead
-  // of one seam a frame. Off by default: it relaxes a region tens of times faster, but under the
+  // of one seam a frame. Off by default: it relaxes a region 4-6 times faster, but under the
   // published stick contact it ends presses elsewhere than one piece (docs/accuracy.md). Costs
-  // each stepped sub-volume one force evaluation and the frame a dense solve of 3 × coarse nodes
-  // (216 for 5 × 5 × 1).
+  // each stepped sub-volume one force evaluation, the frame a dense solve of 3 × coarse nodes
+  // (216 for 5 × 5 × 1), and a move of every sub-volume it reaches (explicit MSDS, 25 × 15³:
+  // +3 to +7 ms a frame, docs/benchmarks.md).
   bool coarse_correction = false;
   // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
   // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
