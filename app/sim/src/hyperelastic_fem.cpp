@@ -338,6 +338,7 @@ double HyperelasticFem::tet_energy_uj(int t, double alpha) const {
 bool HyperelasticFem::newton(int max_iterations, double relative_tolerance) {
   auto& k = factor_->tangent;
   double* values = k.valuePtr();
+  double first_free_force = 0.0;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     assemble(true);
     // Remaining moves of the held nodes, and the balance of the free ones.
@@ -350,8 +351,12 @@ bool HyperelasticFem::newton(int max_iterations, double relative_tolerance) {
         free_force = std::max(free_force, gradient_.segment<3>(3 * node).norm());
       }
     }
-    const double force_scale =
-        std::max({held_force, max_push_mn(), load_.lpNorm<Eigen::Infinity>(), 1e-12});
+    // With the probe lifted and no load the answer is rest, where every force vanishes: measure
+    // the balance against the imbalance this solve started from too, or the tolerance shrinks
+    // with the forces and only rounding decides when the line search gives up.
+    if (iteration == 0) first_free_force = free_force;
+    const double force_scale = std::max(
+        {held_force, max_push_mn(), load_.lpNorm<Eigen::Infinity>(), first_free_force, 1e-12});
     last_.max_free_force_mn = free_force;
     last_.max_held_force_mn = held_force;
     const bool targets_reached = remaining <= kTargetReachedMm;
