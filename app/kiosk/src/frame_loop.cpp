@@ -10,6 +10,8 @@ FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock
       renderer_(renderer),
       clock_(clock),
       simulation_budget_us_(budgets.simulation_budget_us),
+      render_budget_us_(budgets.render_budget_us),
+      render_capped_(budgets.budget_us),
       scheduler_(clock, table(budgets), {60.0, budgets.budget_us}) {}
 
 std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings& budgets) {
@@ -29,7 +31,12 @@ sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sam
   sample_ = sample;
   sample_age_us_ = std::max<std::int64_t>(sample_age_us, 0);
   frame_start_us_ = clock_.now_us();
-  return scheduler_.tick();
+  last_render_us_ = 0;
+  const sched::TickReport report = scheduler_.tick();
+  last_render_capped_us_ =
+      report.duration_us - std::max<std::int64_t>(last_render_us_ - render_budget_us_, 0);
+  render_capped_.record(last_render_capped_us_);
+  return report;
 }
 
 void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
@@ -51,7 +58,9 @@ void FrameLoop::view(void* self, const sched::TaskTick&) {
 
 void FrameLoop::render(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
+  const hal::TimestampUs start_us = loop->clock_.now_us();
   loop->renderer_.render(*loop->session_, tick.tick_index);
+  loop->last_render_us_ = loop->clock_.now_us() - start_us;
   // Only a frame that took a new pose shows a probe position this new.
   if (loop->sample_ && !loop->outcome_.pose_rejected) {
     loop->probe_to_photon_.record(loop->sample_age_us_ + loop->clock_.now_us() -

@@ -428,13 +428,15 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     apply_actions(frame_renderer.actions);
     frame_renderer.actions = {};
     if (ui.calipers().points == 2) report.controls.caliper_mm = ui.calipers().distance_mm();
-    auto by_method = std::ranges::find(report.frame_by_method, method_key,
-                                       [](const auto& entry) { return entry.first; });
+    auto by_method =
+        std::ranges::find(report.frame_by_method, method_key, &RunReport::MethodFrames::method);
     if (by_method == report.frame_by_method.end()) {
-      report.frame_by_method.emplace_back(method_key, sched::FrameTimeStats(budget_us));
+      report.frame_by_method.push_back(
+          {method_key, sched::FrameTimeStats(budget_us), sched::FrameTimeStats(budget_us)});
       by_method = report.frame_by_method.end() - 1;
     }
-    by_method->second.record(tick.duration_us);
+    by_method->whole.record(tick.duration_us);
+    by_method->render_capped.record(loop.last_frame_render_capped_us());
     const FrameOutcome& outcome = loop.outcome();
     if (options.resident_memory_kib && frame % frames_per_second == 0) {
       report.memory_kib.emplace_back(frame, options.resident_memory_kib());
@@ -491,6 +493,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   report.controls.taps_missed = touch.missed();
   report.controls.missed = touch.missed_labels();
   report.frame = loop.scheduler().frame_stats();
+  report.frame_render_capped = loop.frame_time_render_capped();
   report.probe_to_photon = loop.probe_to_photon();
   report.tasks.assign(loop.scheduler().task_stats().begin(), loop.scheduler().task_stats().end());
   const auto report_path = options.out_dir / "report.json";

@@ -1,6 +1,7 @@
 // The kiosk's frame loop on the tiny case with a manual clock: every stage runs when the frame
 // has time; with no time left the B-scan and the view are skipped and hold their last results,
-// while the simulation and the drawing still run every frame.
+// while the simulation and the drawing still run every frame; a slow drawing's excess over
+// its reserve is told apart from the schedule's.
 
 #include "ultrasim/kiosk/frame_loop.hpp"
 
@@ -124,6 +125,34 @@ TEST_F(FrameLoopTest, ProbeToPhotonCountsTheSamplesAgeAndTheFrame) {
   loop.run_frame(pose_at(0.3), 40'000);
   EXPECT_EQ(loop.probe_to_photon().count(), 2);
   EXPECT_EQ(loop.probe_to_photon().deadline_misses(), 1);  // 45 ms > 33 ms
+}
+
+}  // namespace
+}  // namespace ultrasim::kiosk
+
+namespace ultrasim::kiosk {
+namespace {
+
+// The frame with the rendering at its reserve: a slow rasteriser's excess over the render's
+// budget comes off the frame's time (and only that: a draw inside its reserve counts in full).
+TEST_F(FrameLoopTest, TheRenderCappedFrameLeavesOutOnlyTheDrawingsExcess) {
+  Session session(tissue_, settings_, clock_, jobs_);
+  const std::int64_t reserve_us = settings_.frame.render_budget_us;
+  RecordingRenderer slow(clock_, reserve_us + 9'000);
+  FrameLoop loop(session, slow, clock_, settings_.frame);
+  const sched::TickReport whole = loop.run_frame(pose_at(0.3));
+  EXPECT_TRUE(whole.deadline_missed);  // only the manual clock's drawing takes time here
+  EXPECT_EQ(whole.duration_us, reserve_us + 9'000);
+  EXPECT_EQ(loop.last_frame_render_capped_us(), reserve_us);
+  EXPECT_EQ(loop.frame_time_render_capped().deadline_misses(), 0);
+  EXPECT_EQ(loop.scheduler().frame_stats().deadline_misses(), 1);
+
+  RecordingRenderer quick(clock_, reserve_us - 1'000);
+  FrameLoop fits(session, quick, clock_, settings_.frame);
+  const sched::TickReport r = fits.run_frame(pose_at(0.3));
+  EXPECT_EQ(fits.last_frame_render_capped_us(), r.duration_us);
+  ASSERT_EQ(fits.frame_time_render_capped().count(), 1);
+  EXPECT_EQ(fits.frame_time_render_capped().max_us(), r.duration_us);
 }
 
 }  // namespace

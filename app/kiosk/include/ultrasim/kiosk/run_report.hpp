@@ -90,9 +90,17 @@ struct RunReport {
   double max_contact_force_n = 0.0;
   StitchSummary stitching;
   sched::FrameTimeStats frame{0};  // whole frames against the frame budget
-  // Whole frames by the deformation method that ran them (engine_key), in the order first used:
-  // the trainee's choice of method decides most of a frame's time.
-  std::vector<std::pair<std::string, sched::FrameTimeStats>> frame_by_method;
+  // Frames with the rendering counted at no more than its reserve
+  // (FrameLoop::frame_time_render_capped): the schedule's part, whatever the rasteriser's speed.
+  sched::FrameTimeStats frame_render_capped{0};
+  // Frames by the deformation method that ran them (engine_key), in the order first used: the
+  // trainee's choice of method decides most of a frame's time.
+  struct MethodFrames {
+    std::string method;
+    sched::FrameTimeStats whole;
+    sched::FrameTimeStats render_capped;
+  };
+  std::vector<MethodFrames> frame_by_method;
   std::vector<sched::TaskStats> tasks;  // the frame loop's tasks, in the order they run
   std::vector<Snapshot> snapshots;
   // Resident memory, KiB, once a second of the script: (frame, KiB). Growth: the median of the
