@@ -258,6 +258,7 @@ VARIANT_STYLES = {
     "4-exchanges": ("selective, seams exchanged 4 times a frame", "-."),
     "coarse": ("selective, coarse correction", (0, (1, 1))),
     "coarse-4-exchanges": ("selective, coarse correction, 4 exchanges", (0, (5, 1, 1, 1, 1, 1))),
+    "fine": ("selective, fine correction (20 CG iterations)", (0, (3, 1, 1, 1))),
 }
 
 

@@ -244,6 +244,10 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "
               "elsewhere than one piece under the stick contact (false: the seams alone, as "
               "published)."));
+  t.add(field("fine_correction_iterations", &S::fine_correction_iterations, IntegerIn<int>{0, 1000},
+              "Once a frame, at most this many conjugate-gradient iterations on the stepped "
+              "sub-volumes as one piece, within the frame's time: the seams settle around a press "
+              "in a few frames (0: the seams alone, as published)."));
   t.add(field("sleep_force_mn", &S::sleep_force_mn, RealIn::closed(0.0, 1e6),
               "A sub-volume out of reach sleeps when its seams pull less than this (mN) ..."));
   t.add(field("sleep_motion_mm", &S::sleep_motion_mm, RealIn::closed(0.0, 1e3),

@@ -84,15 +84,20 @@ void BM_OnePiece(benchmark::State& state) {
   state.counters["tets"] = r.mesh.tet_count();
 }
 
+// What the stitched frame adds to the seams: nothing, the coarse correction, or the fine one.
+enum class Correction { kNone = 0, kCoarse = 1, kFine = 2 };
+constexpr int kFineIterations = 20;  // as stitch_price's "fine"
+
 void run_stitched(benchmark::State& state, int per_side, int sub_nodes, bool selective, int threads,
-                  bool coarse_correction) {
+                  Correction correction) {
   const int side = per_side * sub_nodes - 2 * (per_side - 1);
   const Region& r = region(side, sub_nodes);
   drivers::posix::ThreadPool jobs(threads);
   sim::StitchingSettings stitching;
   stitching.sub_volumes = {per_side, per_side, 1};
   stitching.selective = selective;
-  stitching.coarse_correction = coarse_correction;
+  stitching.coarse_correction = correction == Correction::kCoarse;
+  stitching.fine_correction_iterations = correction == Correction::kFine ? kFineIterations : 0;
   sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method(state), {}, stitching, &jobs);
   double stepped = 0.0, gap = 0.0;
   int frames = 0;
@@ -115,12 +120,13 @@ void run_stitched(benchmark::State& state, int per_side, int sub_nodes, bool sel
 
 void BM_Stitched(benchmark::State& state) {
   run_stitched(state, static_cast<int>(state.range(1)), static_cast<int>(state.range(2)),
-               state.range(3) != 0, static_cast<int>(state.range(4)), false);
+               state.range(3) != 0, static_cast<int>(state.range(4)), Correction::kNone);
 }
 
-// The coarse correction's price: 25 sub-volumes, selective, 2 threads, without and with it.
-void BM_StitchedCoarse(benchmark::State& state) {
-  run_stitched(state, 5, static_cast<int>(state.range(1)), true, 2, state.range(2) != 0);
+// The corrections' price: 25 sub-volumes, selective, 2 threads, without and with each.
+void BM_StitchedCorrection(benchmark::State& state) {
+  run_stitched(state, 5, static_cast<int>(state.range(1)), true, 2,
+               static_cast<Correction>(state.range(2)));
 }
 
 constexpr int kMethods[] = {static_cast<int>(sim::EngineKind::kPcgFem),
@@ -150,9 +156,9 @@ void stitched_args(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_OnePiece)->Apply(one_piece_args)->Unit(benchmark::kMillisecond)->Iterations(40);
 BENCHMARK(BM_Stitched)->Apply(stitched_args)->Unit(benchmark::kMillisecond)->Iterations(60);
-BENCHMARK(BM_StitchedCoarse)
-    ->ArgNames({"method", "sub_nodes", "coarse"})
-    ->ArgsProduct({{kMethods[0], kMethods[1], kMethods[2]}, {12, 15}, {0, 1}})
+BENCHMARK(BM_StitchedCorrection)
+    ->ArgNames({"method", "sub_nodes", "correction"})
+    ->ArgsProduct({{kMethods[0], kMethods[1], kMethods[2]}, {12, 15}, {0, 1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(60);
 
@@ -189,17 +195,21 @@ class TableReporter : public bench::FrameTimeReporter {
         std::printf("\n");
       }
     }
-    std::printf("\nCoarse correction: ms per frame, 25 x n^3, selective, 2 threads\n");
-    std::printf("%-14s %9s %8s %8s %7s\n", "method", "sub_nodes", "off", "on", "ratio");
+    std::printf("\nCorrections: ms per frame, 25 x n^3, selective, 2 threads; ratios to none\n");
+    std::printf("%-14s %9s %8s %8s %8s %7s %7s\n", "method", "sub_nodes", "none", "coarse", "fine",
+                "coarse", "fine");
     for (int m : kMethods) {
       for (int sub_nodes : {12, 15}) {
-        const auto name = [&](int coarse) {
-          return "BM_StitchedCoarse/method:" + std::to_string(m) +
-                 "/sub_nodes:" + std::to_string(sub_nodes) + "/coarse:" + std::to_string(coarse);
+        const auto name = [&](int correction) {
+          return "BM_StitchedCorrection/method:" + std::to_string(m) +
+                 "/sub_nodes:" + std::to_string(sub_nodes) +
+                 "/correction:" + std::to_string(correction);
         };
-        const double off = median_ms_by_prefix(name(0)), on = median_ms_by_prefix(name(1));
-        if (off > 0.0 && on > 0.0) {
-          std::printf("%-14s %9d %8.2f %8.2f %7.3f\n", key(m), sub_nodes, off, on, on / off);
+        const double none = median_ms_by_prefix(name(0)), coarse = median_ms_by_prefix(name(1)),
+                     fine = median_ms_by_prefix(name(2));
+        if (none > 0.0 && coarse > 0.0 && fine > 0.0) {
+          std::printf("%-14s %9d %8.2f %8.2f %8.2f %7.3f %7.3f\n", key(m), sub_nodes, none, coarse,
+                      fine, coarse / none, fine / none);
         }
       }
     }

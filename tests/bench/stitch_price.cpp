@@ -1,5 +1,5 @@
 // The price of stitching and of skipping sub-volumes, as CSVs for the chart (docs/accuracy.md):
-//   build/ci/tests/bench/stitch_price --out DIR [--quick]
+//   build/ci/tests/bench/stitch_price --out DIR [--quick] [--variant NAME]
 //   /usr/bin/python3 scripts/plot_engines.py --stitching DIR --out docs/images
 // writes DIR/stitch-frames.csv and DIR/stitch-stiffness.csv.
 //
@@ -75,6 +75,7 @@ struct Variant {
   bool split_overlap_stiffness;
   int exchanges_per_frame;
   bool coarse_correction;
+  int fine_correction_iterations = 0;
 };
 
 constexpr Variant kVariants[] = {
@@ -84,12 +85,14 @@ constexpr Variant kVariants[] = {
     {"4-exchanges", true, true, 4, false},
     {"coarse", true, true, 1, true},
     {"coarse-4-exchanges", true, true, 4, true},
+    {"fine", true, true, 1, false, 20},
 };
 
 constexpr sim::EngineKind kMethods[] = {sim::EngineKind::kPcgFem, sim::EngineKind::kMsdsExplicit,
                                         sim::EngineKind::kMsdsImplicit};
 
-void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, std::ofstream& out) {
+void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::string& only,
+                  std::ofstream& out) {
   out << "scenario,method,variant,frame,phase,error,gap_mm,seam_force_mn,stepped\n";
   for (const bool placed : {false, true}) {
     if (quick && !placed) continue;
@@ -107,12 +110,14 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, std::ofstre
         reference.push_back(one_piece->displacements_mm());
       }
       for (const Variant& v : kVariants) {
+        if (!only.empty() && only != v.name) continue;
         sim::StitchingSettings stitching;
         stitching.sub_volumes = {5, 5, 1};
         stitching.selective = v.selective;
         stitching.split_overlap_stiffness = v.split_overlap_stiffness;
         stitching.exchanges_per_frame = v.exchanges_per_frame;
         stitching.coarse_correction = v.coarse_correction;
+        stitching.fine_correction_iterations = v.fine_correction_iterations;
         sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
         double error_at_10 = 0.0;
         for (int f = 0; f < total; ++f) {
@@ -167,13 +172,15 @@ void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) 
 
 int main(int argc, char** argv) {
   std::string dir;
+  std::string only;
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--out") == 0 && i + 1 < argc) dir = argv[i + 1];
+    if (std::strcmp(argv[i], "--variant") == 0 && i + 1 < argc) only = argv[i + 1];
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
   }
   if (dir.empty()) {
-    std::fprintf(stderr, "usage: stitch_price --out DIR [--quick]\n");
+    std::fprintf(stderr, "usage: stitch_price --out DIR [--quick] [--variant NAME]\n");
     return 2;
   }
   const Region r = bench::make_region(kSide, kDepth);
@@ -184,7 +191,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "stitch_price: cannot write in %s\n", dir.c_str());
     return 1;
   }
-  frames_study(r, jobs, quick, frames);
+  frames_study(r, jobs, quick, only, frames);
   if (!quick) stiffness_study(r, jobs, stiffness);
   return 0;
 }

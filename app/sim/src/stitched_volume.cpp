@@ -97,6 +97,17 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
     coarse_ = std::make_unique<CoarseCorrection>(grid_, boxes, engines);
     corrected_.reserve(subs_.size());
   }
+  if (settings_.fine_correction_iterations > 0) {
+    std::vector<std::vector<int>> grid_nodes;
+    std::vector<const DeformationEngine*> engines;
+    for (const auto& sub : subs_) {
+      grid_nodes.push_back(sub.global_node);
+      engines.push_back(sub.engine.get());
+      engines_.push_back(sub.engine.get());
+    }
+    fine_ = std::make_unique<FineCorrection>(grid_nodes, engines, fixed_);
+    stepped_flags_.assign(subs_.size(), 0);
+  }
   name_ = "stitched " + std::string(subs_.front().engine->name()) + " (" +
           std::to_string(subs_.size()) + " sub-volumes)";
   schedule_.reserve(subs_.size());
@@ -279,6 +290,7 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
                  part_dt_s, false);
     }
   }
+  correct_finely(may_continue);
   update_coarse_residuals(std::span(schedule_).first(next));
   EngineStepStats out;
   for (const auto& sub : subs_) {
@@ -424,6 +436,22 @@ void StitchedVolume::update_coarse_residuals(std::span<const int> stepped) {
   if (!coarse_) return;
   const auto update = [&](int i) { coarse_->update(stepped[i], *subs_[stepped[i]].engine); };
   for_each_task(jobs_, static_cast<int>(stepped.size()), update);
+}
+
+void StitchedVolume::correct_finely(const StepBudget& may_continue) {
+  stats_.fine_iterations = 0;
+  stats_.fine_move_mm = 0.0;
+  if (!fine_) return;
+  for (std::size_t s = 0; s < subs_.size(); ++s) stepped_flags_[s] = subs_[s].stepped ? 1 : 0;
+  constexpr double kRelativeTolerance = 1e-3;
+  const FineCorrection::Result result =
+      fine_->correct(engines_, stepped_flags_, settings_.fine_correction_iterations,
+                     kRelativeTolerance, may_continue, jobs_);
+  stats_.fine_iterations = result.iterations;
+  stats_.fine_move_mm = result.largest_move_mm;
+  for (auto& sub : subs_) {
+    if (sub.stepped) sub.positions_mm = sub.engine->deformed_positions_mm();
+  }
 }
 
 void StitchedVolume::correct_coarsely() {

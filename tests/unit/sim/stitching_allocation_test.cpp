@@ -22,11 +22,12 @@ TEST(StitchingAllocation, AStitchedFrameDoesNotAllocateOnceWarmedUp) {
   hal::InlineJobSystem jobs;
   for (auto method : {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
     for (bool selective : {true, false}) {
-      for (bool coarse : {false, true}) {
+      for (int correction : {0, 1, 2}) {  // none, coarse, fine
         StitchingSettings stitching;
         stitching.sub_volumes = {3, 2, 1};
         stitching.selective = selective;
-        stitching.coarse_correction = coarse;
+        stitching.coarse_correction = correction == 1;
+        stitching.fine_correction_iterations = correction == 2 ? 20 : 0;
         StitchedVolume stitched(grid, materials, fixed, method, EngineSettings{}, stitching, &jobs);
         // Warm up on the deepest press (the engines' largest contact sets), then press again.
         const auto probe_at = [](double depth_mm) {
@@ -44,7 +45,7 @@ TEST(StitchingAllocation, AStitchedFrameDoesNotAllocateOnceWarmedUp) {
           allocations += ::ultrasim::testing::stop_counting_allocations();
         }
         EXPECT_EQ(allocations, 0) << stitched.name() << (selective ? " selective" : " all")
-                                  << (coarse ? ", coarse correction" : "");
+                                  << ", correction " << correction;
       }
     }
   }

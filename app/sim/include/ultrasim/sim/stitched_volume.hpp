@@ -15,6 +15,7 @@
 #include "ultrasim/sim/coarse_correction.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
+#include "ultrasim/sim/fine_correction.hpp"
 #include "ultrasim/sim/settings.hpp"
 #include "ultrasim/sim/sub_volume_split.hpp"
 
@@ -35,6 +36,9 @@ struct StitchStepStats {
   // and the sub-volumes it moved (those not stepped among them are woken).
   double coarse_move_mm = 0.0;
   int sub_volumes_corrected = 0;
+  // The fine correction's iterations this frame and its largest nodal move, mm (0: off).
+  int fine_iterations = 0;
+  double fine_move_mm = 0.0;
 };
 
 // Volume stitching (published ch. 5): a region meshed as one grid, split into overlapping
@@ -148,6 +152,9 @@ class StitchedVolume final : public DeformationEngine {
   void finish_frame();
   // The coarse correction's share of the residual of the sub-volumes that stepped.
   void update_coarse_residuals(std::span<const int> stepped);
+  // The fine correction over the sub-volumes that stepped, after their steps (may_continue: the
+  // frame's budget, as for the steps).
+  void correct_finely(const StepBudget& may_continue);
   // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
   // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
   // reach test widens by the move.
@@ -171,6 +178,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<std::uint8_t> fixed_;
   std::unique_ptr<CoarseCorrection> coarse_;  // null: off
   std::vector<int> corrected_;                // per frame, sized once
+  std::unique_ptr<FineCorrection> fine_;      // null: off
+  std::vector<DeformationEngine*> engines_;   // per sub-volume, for the fine correction
+  std::vector<std::uint8_t> stepped_flags_;   // per frame, sized once
 
   // Per frame, sized once.
   std::vector<int> schedule_;

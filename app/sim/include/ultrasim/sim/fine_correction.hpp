@@ -1,0 +1,77 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <vector>
+
+#include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/engine.hpp"
+
+namespace ultrasim::sim {
+
+// The fine level of a stitched volume: a few conjugate-gradient iterations a frame on the whole
+// region as one piece, over the nodes of the sub-volumes that stepped. Seams exchanged once a
+// frame let the sub-volumes around a press settle like a block Jacobi iteration, one seam a
+// frame; this solves
+//   (D K D) Δu = D f,
+// K and f the stepped sub-volumes' rest stiffnesses and elastic forces summed over the copies of
+// each grid node (the overlap's stiffness split among its copies makes them add up to one
+// piece's), D the grid nodes that are neither fixed nor held by the probe in any copy and whose
+// every copy stepped (the rest stay where the frame left them), and adds Δu to every copy. For
+// the linear (PCG) FEM it is the one-piece solve's own step from the stitched shape; for the
+// MSDS the stiffness is linearised about rest, and the step is quasi-static: it moves the tissue
+// toward equilibrium, not along the one piece's damped motion.
+//
+// Jacobi-preconditioned; the products run per sub-volume on the job system and are summed per
+// grid node. Nothing allocates after construction. The frame thread calls correct().
+class FineCorrection {
+ public:
+  // Per sub-volume, its local nodes' grid nodes and its engine (rest_stiffness_mn_per_mm is
+  // taken now); per grid node, whether it is fixed. Allocates.
+  FineCorrection(std::span<const std::vector<int>> grid_nodes,
+                 std::span<const DeformationEngine* const> engines,
+                 std::span<const std::uint8_t> fixed_grid_nodes);
+
+  struct Result {
+    int iterations = 0;
+    double relative_residual = 0.0;  // ‖r‖ / ‖r₀‖ over the corrected nodes when it stopped
+    double largest_move_mm = 0.0;
+  };
+  // At most `iterations` iterations (fewer once the residual falls below `relative_tolerance`
+  // of the first, or when `may_continue` says the frame's time is up: it is asked before each
+  // iteration after the first) over the sub-volumes flagged in `stepped`, then moves their free
+  // nodes.
+  Result correct(std::span<DeformationEngine* const> engines, std::span<const std::uint8_t> stepped,
+                 int iterations, double relative_tolerance,
+                 const std::function<bool()>& may_continue, hal::JobSystem* jobs);
+
+ private:
+  struct Sub {
+    std::vector<int> grid_node;  // per local node
+    Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness;
+    Eigen::VectorXd local_in, local_out;  // 3 × local nodes: scratch
+  };
+  struct Copy {
+    int sub = 0;
+    int local = 0;
+  };
+  // q = D K D p over the stepped sub-volumes.
+  void multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal::JobSystem* jobs);
+  // out = Σ over each free grid node's copies of the sub-volumes' local_out; 0 elsewhere.
+  void gather(Eigen::VectorXd& out) const;
+
+  std::vector<Sub> subs_;
+  std::vector<int> copies_begin_;  // per grid node, its copies (CSR)
+  std::vector<Copy> copies_;
+  std::vector<std::uint8_t> fixed_;
+  Eigen::VectorXd inverse_diagonal_;  // of the summed stiffness, per grid DOF
+  // Per frame, sized once.
+  std::vector<std::uint8_t> free_;
+  std::vector<int> stepped_list_;
+  Eigen::VectorXd x_, r_, z_, p_, q_;
+};
+
+}  // namespace ultrasim::sim

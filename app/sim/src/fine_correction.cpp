@@ -1,0 +1,164 @@
+#include "ultrasim/sim/fine_correction.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace ultrasim::sim {
+
+namespace {
+
+template <typename F>
+void for_each_task(hal::JobSystem* jobs, int count, F&& f) {
+  if (jobs != nullptr && count > 1) {
+    hal::parallel_for(*jobs, count, f);
+  } else {
+    for (int i = 0; i < count; ++i) f(i);
+  }
+}
+
+}  // namespace
+
+FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
+                               std::span<const DeformationEngine* const> engines,
+                               std::span<const std::uint8_t> fixed_grid_nodes)
+    : fixed_(fixed_grid_nodes.begin(), fixed_grid_nodes.end()) {
+  if (grid_nodes.size() != engines.size()) {
+    throw std::invalid_argument("FineCorrection: " + std::to_string(grid_nodes.size()) +
+                                " node maps for " + std::to_string(engines.size()) + " engines");
+  }
+  const int n = static_cast<int>(fixed_.size());
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(3 * n);
+  std::vector<int> copy_count(n, 0);
+  subs_.resize(engines.size());
+  for (std::size_t s = 0; s < engines.size(); ++s) {
+    Sub& sub = subs_[s];
+    sub.grid_node = grid_nodes[s];
+    sub.stiffness = engines[s]->rest_stiffness_mn_per_mm();
+    const int local = static_cast<int>(sub.grid_node.size());
+    if (sub.stiffness.rows() != 3 * local) {
+      throw std::invalid_argument("FineCorrection: an engine's stiffness does not fit its nodes");
+    }
+    for (int l = 0; l < local; ++l) {
+      const int g = sub.grid_node[l];
+      if (g < 0 || g >= n) throw std::invalid_argument("FineCorrection: a node off the grid");
+      ++copy_count[g];
+      for (int d = 0; d < 3; ++d) diagonal[3 * g + d] += sub.stiffness.coeff(3 * l + d, 3 * l + d);
+    }
+    sub.local_in = Eigen::VectorXd::Zero(3 * local);
+    sub.local_out = Eigen::VectorXd::Zero(3 * local);
+  }
+  copies_begin_.assign(n + 1, 0);
+  for (int g = 0; g < n; ++g) copies_begin_[g + 1] = copies_begin_[g] + copy_count[g];
+  copies_.resize(copies_begin_[n]);
+  std::vector<int> next(copies_begin_.begin(), copies_begin_.end() - 1);
+  for (std::size_t s = 0; s < subs_.size(); ++s) {
+    for (std::size_t l = 0; l < subs_[s].grid_node.size(); ++l) {
+      copies_[next[subs_[s].grid_node[l]]++] = {static_cast<int>(s), static_cast<int>(l)};
+    }
+  }
+  inverse_diagonal_ = Eigen::VectorXd::Zero(3 * n);
+  for (int i = 0; i < 3 * n; ++i) {
+    if (diagonal[i] > 0.0) inverse_diagonal_[i] = 1.0 / diagonal[i];
+  }
+  free_.assign(n, 0);
+  stepped_list_.reserve(subs_.size());
+  for (Eigen::VectorXd* v : {&x_, &r_, &z_, &p_, &q_}) *v = Eigen::VectorXd::Zero(3 * n);
+}
+
+void FineCorrection::gather(Eigen::VectorXd& out) const {
+  const int n = static_cast<int>(free_.size());
+  for (int g = 0; g < n; ++g) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    if (free_[g]) {
+      for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+        sum += subs_[copies_[c].sub].local_out.segment<3>(3 * copies_[c].local);
+      }
+    }
+    out.segment<3>(3 * g) = sum;
+  }
+}
+
+void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal::JobSystem* jobs) {
+  // p is 0 off the free nodes, so each copy takes its grid node's value as it is.
+  const auto product = [&](int i) {
+    Sub& sub = subs_[stepped_list_[i]];
+    for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
+      sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
+    }
+    sub.local_out.noalias() = sub.stiffness * sub.local_in;
+  };
+  for_each_task(jobs, static_cast<int>(stepped_list_.size()), product);
+  gather(q);
+}
+
+FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* const> engines,
+                                               std::span<const std::uint8_t> stepped,
+                                               int iterations, double relative_tolerance,
+                                               const std::function<bool()>& may_continue,
+                                               hal::JobSystem* jobs) {
+  Result result;
+  stepped_list_.clear();
+  for (std::size_t s = 0; s < subs_.size(); ++s) {
+    if (stepped[s]) stepped_list_.push_back(static_cast<int>(s));
+  }
+  if (stepped_list_.empty() || iterations <= 0) return result;
+  const int n = static_cast<int>(free_.size());
+  bool any_free = false;
+  for (int g = 0; g < n; ++g) {
+    bool free = !fixed_[g];
+    for (int c = copies_begin_[g]; free && c < copies_begin_[g + 1]; ++c) {
+      free = stepped[copies_[c].sub] && !engines[copies_[c].sub]->holds_node(copies_[c].local);
+    }
+    free_[g] = free ? 1 : 0;
+    any_free = any_free || free;
+  }
+  if (!any_free) return result;
+  // The residual: the tissue's forces summed over the copies (the seams' pulls on a node whose
+  // every copy moves alike cancel).
+  const auto forces = [&](int i) {
+    const int s = stepped_list_[i];
+    engines[s]->tissue_forces_mn(subs_[s].local_out);
+  };
+  for_each_task(jobs, static_cast<int>(stepped_list_.size()), forces);
+  gather(r_);
+  x_.setZero();
+  z_ = r_.cwiseProduct(inverse_diagonal_);
+  p_ = z_;
+  double rz = r_.dot(z_);
+  const double first_norm = r_.norm();
+  double norm = first_norm;
+  while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * first_norm &&
+         (result.iterations == 0 || !may_continue || may_continue())) {
+    multiply(p_, q_, jobs);
+    const double curvature = p_.dot(q_);
+    if (!(curvature > 0.0)) break;  // not positive definite along p: stop with what there is
+    const double alpha = rz / curvature;
+    x_.noalias() += alpha * p_;
+    r_.noalias() -= alpha * q_;
+    z_ = r_.cwiseProduct(inverse_diagonal_);
+    const double next_rz = r_.dot(z_);
+    p_ = z_ + (next_rz / rz) * p_;
+    rz = next_rz;
+    norm = r_.norm();
+    ++result.iterations;
+  }
+  result.relative_residual = first_norm > 0.0 ? norm / first_norm : 0.0;
+  if (!x_.allFinite()) return result;
+  for (int g = 0; g < n; ++g) {
+    result.largest_move_mm = std::max(result.largest_move_mm, x_.segment<3>(3 * g).norm());
+  }
+  const auto move = [&](int i) {
+    const int s = stepped_list_[i];
+    Sub& sub = subs_[s];
+    for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
+      sub.local_in.segment<3>(3 * l) = x_.segment<3>(3 * sub.grid_node[l]);
+    }
+    engines[s]->displace_free_nodes_mm(sub.local_in);
+  };
+  for_each_task(jobs, static_cast<int>(stepped_list_.size()), move);
+  return result;
+}
+
+}  // namespace ultrasim::sim
