@@ -93,7 +93,7 @@ constexpr sim::EngineKind kMethods[] = {sim::EngineKind::kPcgFem, sim::EngineKin
 
 void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::string& only,
                   std::ofstream& out) {
-  out << "scenario,method,variant,frame,phase,error,gap_mm,seam_force_mn,stepped\n";
+  out << "scenario,method,variant,frame,phase,error,gap_mm,seam_force_mn,stepped,fine_iterations\n";
   for (const bool placed : {false, true}) {
     if (quick && !placed) continue;
     const int total = quick    ? kQuickFrames
@@ -133,7 +133,7 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
                                                                 : "hold";
           out << scenario << ',' << sim::engine_key(method) << ',' << v.name << ',' << f << ','
               << phase << ',' << error << ',' << s.max_gap_mm << ',' << s.max_seam_force_mn << ','
-              << s.sub_volumes_stepped << '\n';
+              << s.sub_volumes_stepped << ',' << s.fine_iterations << '\n';
         }
         std::fprintf(
             stderr, "frames: %s %s %s: error %.4f 10 frames in, %.4f at the end\n", scenario,

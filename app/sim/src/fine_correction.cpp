@@ -67,11 +67,11 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
   for (Eigen::VectorXd* v : {&x_, &r_, &z_, &p_, &q_}) *v = Eigen::VectorXd::Zero(3 * n);
 }
 
-void FineCorrection::gather(Eigen::VectorXd& out) const {
+void FineCorrection::gather(Eigen::VectorXd& out, bool free_only) const {
   const int n = static_cast<int>(free_.size());
   for (int g = 0; g < n; ++g) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    if (free_[g]) {
+    if (free_[g] || !free_only) {
       for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
         sum += subs_[copies_[c].sub].local_out.segment<3>(3 * copies_[c].local);
       }
@@ -90,7 +90,7 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
     sub.local_out.noalias() = sub.stiffness * sub.local_in;
   };
   for_each_task(jobs, static_cast<int>(stepped_list_.size()), product);
-  gather(q);
+  gather(q, true);
 }
 
 FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* const> engines,
@@ -122,15 +122,18 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
     engines[s]->tissue_forces_mn(subs_[s].local_out);
   };
   for_each_task(jobs, static_cast<int>(stepped_list_.size()), forces);
-  gather(r_);
+  // The load: the same forces on every node, the probe's and the base's reactions included (a
+  // node not stepped counts its stepped copies only: a scale, not a balance).
+  gather(r_, false);
+  const double load = r_.norm();
+  gather(r_, true);
   x_.setZero();
   z_ = r_.cwiseProduct(inverse_diagonal_);
   p_ = z_;
   double rz = r_.dot(z_);
-  const double first_norm = r_.norm();
-  double norm = first_norm;
-  while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * first_norm &&
-         (result.iterations == 0 || !may_continue || may_continue())) {
+  double norm = r_.norm();
+  while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * load &&
+         (!may_continue || may_continue())) {
     multiply(p_, q_, jobs);
     const double curvature = p_.dot(q_);
     if (!(curvature > 0.0)) break;  // not positive definite along p: stop with what there is
@@ -144,8 +147,8 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
     norm = r_.norm();
     ++result.iterations;
   }
-  result.relative_residual = first_norm > 0.0 ? norm / first_norm : 0.0;
-  if (!x_.allFinite()) return result;
+  result.relative_residual = load > 0.0 ? norm / load : 0.0;
+  if (result.iterations == 0 || !x_.allFinite()) return result;
   for (int g = 0; g < n; ++g) {
     result.largest_move_mm = std::max(result.largest_move_mm, x_.segment<3>(3 * g).norm());
   }

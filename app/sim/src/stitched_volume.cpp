@@ -443,7 +443,7 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
   stats_.fine_move_mm = 0.0;
   if (!fine_) return;
   for (std::size_t s = 0; s < subs_.size(); ++s) stepped_flags_[s] = subs_[s].stepped ? 1 : 0;
-  constexpr double kRelativeTolerance = 1e-3;
+  constexpr double kRelativeTolerance = 1e-3;  // of the load
   const FineCorrection::Result result =
       fine_->correct(engines_, stepped_flags_, settings_.fine_correction_iterations,
                      kRelativeTolerance, may_continue, jobs_);

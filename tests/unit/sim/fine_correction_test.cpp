@@ -105,8 +105,10 @@ TEST(FineCorrection, StopsWhenTheFrameHasNoTimeLeft) {
   const std::vector<DeformationEngine*> engines{&fem};
   const std::vector<std::uint8_t> stepped{1};
   int asked = 0;
-  const auto time_left = [&asked] { return ++asked <= 2; };  // time for three iterations
-  EXPECT_EQ(fine.correct(engines, stepped, 100, 1e-12, time_left, nullptr).iterations, 3);
+  const auto time_left = [&asked] { return ++asked <= 2; };  // time for two iterations
+  EXPECT_EQ(fine.correct(engines, stepped, 100, 1e-12, time_left, nullptr).iterations, 2);
+  const auto no_time = [] { return false; };
+  EXPECT_EQ(fine.correct(engines, stepped, 100, 1e-12, no_time, nullptr).iterations, 0);
   // Nothing stepped, nothing moves.
   const Eigen::VectorXd before = fem.displacements_mm();
   const std::vector<std::uint8_t> none{0};
@@ -134,11 +136,18 @@ TEST(FineCorrection, AStitchedPcgFemTenFramesAfterAPlacedProbeIsWithinTwoPercent
     stitching.fine_correction_iterations = iterations;
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, {}, stitching,
                             &jobs);
-    for (int f = 0; f < 10; ++f) stitched.step(&probe, 1.0 / 60);
+    int first_frame_iterations = 0;
+    for (int f = 0; f < 10; ++f) {
+      stitched.step(&probe, 1.0 / 60);
+      if (f == 0) first_frame_iterations = stitched.last_stitch_stats().fine_iterations;
+    }
     error[iterations > 0] =
         max_norm(stitched.displacements_mm() - one_piece.displacements_mm()) / peak;
     if (iterations > 0) {
-      EXPECT_GT(stitched.last_stitch_stats().fine_iterations, 0);
+      // All of them at first; none once the tissue has settled (an imbalance under 1e-3 of the
+      // load), so a still probe costs nothing.
+      EXPECT_EQ(first_frame_iterations, iterations);
+      EXPECT_EQ(stitched.last_stitch_stats().fine_iterations, 0);
     }
   }
   EXPECT_LT(error[1], 0.02) << "fine correction: " << error[1] << ", seams alone: " << error[0];

@@ -37,13 +37,15 @@ class FineCorrection {
 
   struct Result {
     int iterations = 0;
-    double relative_residual = 0.0;  // ‖r‖ / ‖r₀‖ over the corrected nodes when it stopped
+    // ‖r‖ over the corrected nodes when it stopped, over the load's ‖f‖ on every node (the
+    // probe's and the fixed base's reactions included).
+    double relative_residual = 0.0;
     double largest_move_mm = 0.0;
   };
-  // At most `iterations` iterations (fewer once the residual falls below `relative_tolerance`
-  // of the first, or when `may_continue` says the frame's time is up: it is asked before each
-  // iteration after the first) over the sub-volumes flagged in `stepped`, then moves their free
-  // nodes.
+  // At most `iterations` iterations over the sub-volumes flagged in `stepped`, then moves their
+  // free nodes. Fewer once the free nodes' imbalance is below `relative_tolerance` of the load
+  // (none when the tissue has settled), or when `may_continue` says the frame's time is up (it
+  // is asked before each iteration: a frame with no time left does none).
   Result correct(std::span<DeformationEngine* const> engines, std::span<const std::uint8_t> stepped,
                  int iterations, double relative_tolerance,
                  const std::function<bool()>& may_continue, hal::JobSystem* jobs);
@@ -60,8 +62,9 @@ class FineCorrection {
   };
   // q = D K D p over the stepped sub-volumes.
   void multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal::JobSystem* jobs);
-  // out = Σ over each free grid node's copies of the sub-volumes' local_out; 0 elsewhere.
-  void gather(Eigen::VectorXd& out) const;
+  // out = Σ over each grid node's copies of the sub-volumes' local_out (free_only: over the free
+  // nodes, 0 elsewhere).
+  void gather(Eigen::VectorXd& out, bool free_only) const;
 
   std::vector<Sub> subs_;
   std::vector<int> copies_begin_;  // per grid node, its copies (CSR)

@@ -171,10 +171,12 @@ struct StitchingSettings {
   // +3 to +7 ms a frame, docs/benchmarks.md).
   bool coarse_correction = false;
   // Once a frame, after the sub-volumes' steps, at most this many conjugate-gradient iterations
-  // on the stepped sub-volumes as one piece (fine_correction.hpp; they stop early at 1e-3 of the
-  // first residual or when the frame's time is up): the seams' slow settling around a press in
-  // a few frames instead of tens. A quasi-static step: for the PCG FEM it is the one piece's own;
-  // the MSDS's damped motion it cuts short. 0: off (the seams alone, as published).
+  // on the stepped sub-volumes as one piece (fine_correction.hpp; none once the free nodes'
+  // imbalance is under 1e-3 of the load, fewer when the frame's time is up): the seams settle
+  // around a press in a few frames instead of tens (docs/accuracy.md: ≤ 2 % of one piece ten
+  // frames after a placed probe for the PCG FEM and the implicit MSDS; not for the explicit MSDS,
+  // whose stick contact then catches other rim nodes than one piece's). 0: off (the seams alone,
+  // as published).
   int fine_correction_iterations = 0;
   // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
   // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
