@@ -63,6 +63,7 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
     if (diagonal[i] > 0.0) inverse_diagonal_[i] = 1.0 / diagonal[i];
   }
   free_.assign(n, 0);
+  stepped_.assign(subs_.size(), 0);
   stepped_list_.reserve(subs_.size());
   for (Eigen::VectorXd* v : {&x_, &r_, &z_, &p_, &q_}) *v = Eigen::VectorXd::Zero(3 * n);
 }
@@ -73,6 +74,8 @@ void FineCorrection::gather(Eigen::VectorXd& out, bool free_only) const {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     if (free_[g] || !free_only) {
       for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+        // A sub-volume that did not step holds no forces of this frame.
+        if (!stepped_[copies_[c].sub]) continue;
         sum += subs_[copies_[c].sub].local_out.segment<3>(3 * copies_[c].local);
       }
     }
@@ -99,8 +102,14 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
                                                const std::function<bool()>& may_continue,
                                                hal::JobSystem* jobs) {
   Result result;
+  if (engines.size() != subs_.size() || stepped.size() != subs_.size()) {
+    throw std::invalid_argument("FineCorrection::correct: " + std::to_string(engines.size()) +
+                                " engines and " + std::to_string(stepped.size()) + " flags for " +
+                                std::to_string(subs_.size()) + " sub-volumes");
+  }
   stepped_list_.clear();
   for (std::size_t s = 0; s < subs_.size(); ++s) {
+    stepped_[s] = stepped[s] ? 1 : 0;
     if (stepped[s]) stepped_list_.push_back(static_cast<int>(s));
   }
   if (stepped_list_.empty() || iterations <= 0) return result;

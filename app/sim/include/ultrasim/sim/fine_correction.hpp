@@ -73,6 +73,7 @@ class FineCorrection {
   Eigen::VectorXd inverse_diagonal_;  // of the summed stiffness, per grid DOF
   // Per frame, sized once.
   std::vector<std::uint8_t> free_;
+  std::vector<std::uint8_t> stepped_;  // per sub-volume
   std::vector<int> stepped_list_;
   Eigen::VectorXd x_, r_, z_, p_, q_;
 };
