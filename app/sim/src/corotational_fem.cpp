@@ -277,11 +277,7 @@ int CorotationalFem::node_chunks() const {
 
 template <typename Body>
 void CorotationalFem::for_each_chunk(int chunks, Body&& body) const {
-  if (jobs_ != nullptr && jobs_->thread_count() > 1 && chunks > 1) {
-    hal::parallel_for(*jobs_, chunks, [&body](int chunk) { body(chunk); });
-  } else {
-    for (int chunk = 0; chunk < chunks; ++chunk) body(chunk);
-  }
+  hal::parallel_for(jobs_, chunks, [&body](int chunk) { body(chunk); });
 }
 
 Eigen::Vector4d CorotationalFem::sum_chunks(int chunks) const {

@@ -389,11 +389,7 @@ void ExactFem::accumulate_field() {
       }
     }
   };
-  if (jobs_ != nullptr && jobs_->thread_count() > 1 && bands > 1) {
-    hal::parallel_for(*jobs_, bands, band);
-  } else {
-    for (int b = 0; b < bands; ++b) band(b);
-  }
+  hal::parallel_for(jobs_, bands, band);
 }
 
 EngineStepStats ExactFem::step_frictionless(const ProbeCollider& probe) {

@@ -7,19 +7,6 @@
 
 namespace ultrasim::sim {
 
-namespace {
-
-template <typename F>
-void for_each_task(hal::JobSystem* jobs, int count, F&& f) {
-  if (jobs != nullptr && count > 1) {
-    hal::parallel_for(*jobs, count, f);
-  } else {
-    for (int i = 0; i < count; ++i) f(i);
-  }
-}
-
-}  // namespace
-
 FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
                                std::span<const DeformationEngine* const> engines,
                                std::span<const std::uint8_t> fixed_grid_nodes)
@@ -92,7 +79,7 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
     }
     sub.local_out.noalias() = sub.stiffness * sub.local_in;
   };
-  for_each_task(jobs, static_cast<int>(stepped_list_.size()), product);
+  hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), product);
   gather(q, true);
 }
 
@@ -130,7 +117,7 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
     const int s = stepped_list_[i];
     engines[s]->tissue_forces_mn(subs_[s].local_out);
   };
-  for_each_task(jobs, static_cast<int>(stepped_list_.size()), forces);
+  hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), forces);
   // The load: the same forces on every node, the probe's and the base's reactions included (a
   // node not stepped counts its stepped copies only: a scale, not a balance).
   gather(r_, false);
@@ -169,7 +156,7 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
     }
     engines[s]->displace_free_nodes_mm(sub.local_in);
   };
-  for_each_task(jobs, static_cast<int>(stepped_list_.size()), move);
+  hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), move);
   return result;
 }
 

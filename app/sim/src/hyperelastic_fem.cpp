@@ -189,11 +189,7 @@ void HyperelasticFem::build_pattern() {
 
 template <typename Body>
 void HyperelasticFem::for_each_chunk(int count, Body&& body) const {
-  if (jobs_ != nullptr && jobs_->thread_count() > 1 && count > 1) {
-    hal::parallel_for(*jobs_, count, [&body](int chunk) { body(chunk); });
-  } else {
-    for (int chunk = 0; chunk < count; ++chunk) body(chunk);
-  }
+  hal::parallel_for(jobs_, count, [&body](int chunk) { body(chunk); });
 }
 
 void HyperelasticFem::assemble(bool with_tangent) {

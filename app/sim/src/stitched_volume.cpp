@@ -34,17 +34,6 @@ constexpr double kReachMarginMm = 0.5;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
-// f(0) ... f(count − 1), one task each on the job system where there is one and more than one
-// task (sub-volumes are independent within a batch).
-template <typename F>
-void for_each_task(hal::JobSystem* jobs, int count, F&& f) {
-  if (jobs != nullptr && count > 1) {
-    hal::parallel_for(*jobs, count, f);
-  } else {
-    for (int i = 0; i < count; ++i) f(i);
-  }
-}
-
 }  // namespace
 
 bool stitchable(EngineKind method) {
@@ -429,13 +418,13 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
     sub.positions_mm = sub.engine->deformed_positions_mm();
     sub.stepped = true;
   };
-  for_each_task(jobs_, static_cast<int>(subs.size()), step_one);
+  hal::parallel_for(jobs_, static_cast<int>(subs.size()), step_one);
 }
 
 void StitchedVolume::update_coarse_residuals(std::span<const int> stepped) {
   if (!coarse_) return;
   const auto update = [&](int i) { coarse_->update(stepped[i], *subs_[stepped[i]].engine); };
-  for_each_task(jobs_, static_cast<int>(stepped.size()), update);
+  hal::parallel_for(jobs_, static_cast<int>(stepped.size()), update);
 }
 
 void StitchedVolume::correct_finely(const StepBudget& may_continue) {
@@ -493,7 +482,7 @@ void StitchedVolume::correct_coarsely() {
     sub.corrected = true;
     sub.asleep = false;
   };
-  for_each_task(jobs_, static_cast<int>(corrected_.size()), apply);
+  hal::parallel_for(jobs_, static_cast<int>(corrected_.size()), apply);
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 

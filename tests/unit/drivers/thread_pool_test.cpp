@@ -52,5 +52,16 @@ TEST(ThreadPool, ZeroAndOneThreadsRunOnTheCaller) {
   EXPECT_EQ(sum, 45);
 }
 
+TEST(ThreadPool, AMissingJobSystemRunsTheTasksInOrderOnTheCaller) {
+  std::vector<int> order;
+  hal::parallel_for(static_cast<hal::JobSystem*>(nullptr), 5, [&](int i) { order.push_back(i); });
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 3, 4}));
+  ThreadPool pool(2);
+  std::vector<std::atomic<int>> hits(64);
+  hal::JobSystem* jobs = &pool;
+  hal::parallel_for(jobs, 64, [&](int i) { hits[i].fetch_add(1); });
+  for (const auto& h : hits) EXPECT_EQ(h.load(), 1);
+}
+
 }  // namespace
 }  // namespace ultrasim::drivers::posix

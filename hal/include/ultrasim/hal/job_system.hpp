@@ -30,6 +30,18 @@ void parallel_for(JobSystem& jobs, int task_count, F&& f) {
       const_cast<void*>(static_cast<const void*>(&f)));
 }
 
+// The same where a job system may be missing: on `jobs` when there is one with more than one
+// thread and more than one task, otherwise in order on the caller (engines built without one:
+// tests, tools).
+template <typename F>
+void parallel_for(JobSystem* jobs, int task_count, F&& f) {
+  if (jobs != nullptr && jobs->thread_count() > 1 && task_count > 1) {
+    parallel_for(*jobs, task_count, f);
+  } else {
+    for (int i = 0; i < task_count; ++i) f(i);
+  }
+}
+
 // A JobSystem with no threads: every task runs on the caller, in order.
 class InlineJobSystem final : public JobSystem {
  public:
