@@ -275,7 +275,8 @@ def stitching_series(ax, rows, scenario, column, variants, log=False):
             values = [float(r[column]) for r in pts]
             if log:
                 values = [max(v, ERROR_FLOOR) for v in values]
-            ax.plot([int(r["frame"]) for r in pts], values, style, color=colour, lw=1.2,
+            ax.plot([int(r["frame"]) for r in pts], values, linestyle=style, color=colour,
+                    lw=2.4 if variant == "fine" else 1.2,
                     label=f"{METHOD_NAMES.get(method, method)}: {name}")
     if log:
         ax.set_yscale("log")
@@ -285,7 +286,7 @@ def stitching_series(ax, rows, scenario, column, variants, log=False):
 def stitching(folder, out_dir):
     folder = Path(folder)
     rows = read_rows(folder / "stitch-frames.csv")
-    fig, axes = plt.subplots(2, 3, figsize=(17, 9.5))
+    fig, axes = plt.subplots(2, 3, figsize=(17, 11))
     pressed = [r for r in rows if r["scenario"] == "pressed"]
     hold = min(int(r["frame"]) for r in pressed if r["phase"] == "hold")
     slide = min(int(r["frame"]) for r in pressed if r["phase"] == "slide")
@@ -339,10 +340,12 @@ def stitching(folder, out_dir):
                  fontsize=9)
     ax.grid(True, which="both", alpha=0.2)
     ax.legend(fontsize=6)
-    axes[0, 0].legend(fontsize=6, loc="lower right")
+    # One legend for the error panels, below them: 3 methods × 7 variants cover a panel.
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=3, frameon=False)
     fig.suptitle("The price of stitching: 25 sub-volumes of 12³ nodes against one 52×52×12 mesh, "
                  "published sphere probe, same method both sides", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.tight_layout(rect=(0, 0.13, 1, 0.97))
     fig.savefig(out_dir / "stitching-price.png", dpi=100)
 
 
