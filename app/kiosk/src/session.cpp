@@ -299,10 +299,17 @@ void Session::update_view() {
   }
   structures_.update(deformed, jobs_);
   // The skin over the tissue and around it, struck by the probe (it is the view's: it moves
-  // when the view is refreshed, a frame's time each).
+  // when the view is refreshed, by the time since it last moved: a frame's at least, at most
+  // 0.1 s, so frames the scheduler skipped the view in do not slow its springing back).
+  const hal::TimestampUs now = clock_.now_us();
+  const double frame_s = static_cast<double>(settings_.frame.budget_us) * 1e-6;
+  const double skin_dt_s = last_view_us_ < 0
+                               ? frame_s
+                               : std::clamp(static_cast<double>(now - last_view_us_) * 1e-6,
+                                            frame_s, std::max(frame_s, 0.1));
+  last_view_us_ = now;
   const std::optional<sim::ProbeCollider> collider = probe_collider();
-  skin_.step(deformed, collider ? &*collider : nullptr,
-             static_cast<double>(settings_.frame.budget_us) * 1e-6);
+  skin_.step(deformed, collider ? &*collider : nullptr, skin_dt_s);
   surface_views_.assign(structures_.views().begin(), structures_.views().end());
   surface_views_.push_back(skin_.view());
 }

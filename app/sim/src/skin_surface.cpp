@@ -79,11 +79,16 @@ bool SkinSurface::step(const ProbeCollider* probe,
     position_[static_cast<std::size_t>(driven_[k])] = driven_positions_mm[k];
     velocity_[static_cast<std::size_t>(driven_[k])].setZero();
   }
-  const double h = dt_s / settings_.substeps_per_frame;
+  // The settings' substeps keep a 60 Hz frame stable; a longer step takes as many more.
+  constexpr double kDesignFrameS = 1.0 / 60.0;
+  const int substeps = std::max(
+      settings_.substeps_per_frame,
+      static_cast<int>(std::ceil(dt_s / kDesignFrameS * settings_.substeps_per_frame - 1e-9)));
+  const double h = dt_s / substeps;
   const double mass_kg = settings_.node_mass_g * 1e-3;
   // N/mm on mm gives N; over kg gives m/s², which is 1000 mm/s².
   const double accel_mm_per_n = 1e3 / mass_kg;
-  for (int s = 0; s < settings_.substeps_per_frame; ++s) {
+  for (int s = 0; s < substeps; ++s) {
     for (std::size_t n = 0; n < rest_.size(); ++n) {
       force_[n] = settings_.anchor_stiffness_n_per_mm * (rest_[n] - position_[n]);
     }

@@ -47,6 +47,25 @@ TEST(SkinSurface, DentsUnderTheProbeAndSpringsBack) {
   }
 }
 
+// A view the scheduler skipped for a few frames moves the skin by their time at once: six
+// frames' step springs back as far as six frames do (more substeps, not a longer one: stable).
+TEST(SkinSurface, ALongerStepSpringsBackAsFarAsTheFramesItStandsFor) {
+  SkinSurface every_frame = skin(), skipped = skin();
+  const auto driven = at_rest(every_frame);
+  const ProbeCollider probe = probe_at(-12.0, 10.0, 4.0);
+  for (int f = 0; f < 30; ++f) {
+    ASSERT_TRUE(every_frame.step(&probe, driven, kDt));
+    ASSERT_TRUE(skipped.step(&probe, driven, kDt));
+  }
+  for (int f = 0; f < 12; ++f) ASSERT_TRUE(every_frame.step(nullptr, driven, kDt));
+  for (int f = 0; f < 2; ++f) ASSERT_TRUE(skipped.step(nullptr, driven, 6 * kDt));
+  EXPECT_LT(skipped.max_dent_mm(), 0.05);
+  EXPECT_NEAR(skipped.max_dent_mm(), every_frame.max_dent_mm(), 0.02);
+  for (std::size_t n = 0; n < skipped.rest_positions_mm().size(); ++n) {
+    EXPECT_LT((skipped.positions_mm()[n] - every_frame.positions_mm()[n]).norm(), 0.05) << n;
+  }
+}
+
 // Over the tissue the skin is the tissue's surface; next to it the free skin follows, so the
 // step across the tissue's edge is a slope, not a seam.
 TEST(SkinSurface, FollowsTheTissueWithoutASeam) {

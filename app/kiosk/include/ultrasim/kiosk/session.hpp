@@ -148,7 +148,8 @@ class Session {
   sim::StitchedVolume* stitched_ = nullptr;  // engine_, when it runs stitched
   std::unique_ptr<sim::DeformationEngine> make_method(sim::EngineKind method) const;
   hal::TimestampUs last_update_us_ = -1;
-  std::string probe_status_;  // reserved in the constructor
+  hal::TimestampUs last_view_us_ = -1;  // when the skin last moved (update_view)
+  std::string probe_status_;            // reserved in the constructor
   geometry::TetLocator locator_;
   BscanControls controls_;
   imaging::ProbeGeometry probe_;         // the case's probe at the current depth

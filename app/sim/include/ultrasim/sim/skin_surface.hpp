@@ -44,7 +44,9 @@ class SkinSurface {
   std::span<const std::uint32_t> triangles() const { return triangles_; }
 
   // One frame of dt_s: the driven nodes placed at driven_positions_mm (driven_nodes() order),
-  // the free ones integrated (semi-implicit Euler, substeps) and pushed out of the probe (null:
+  // the free ones integrated (semi-implicit Euler, substeps_per_frame substeps for a 60 Hz frame
+  // or less, proportionally more for a longer dt_s, which the caller bounds: a frame the view
+  // skipped) and pushed out of the probe (null:
   // no probe in reach). Never allocates. A non-finite input is refused (false, nothing changes);
   // a step that went non-finite puts the skin back at rest (false): never garbage on screen.
   bool step(const ProbeCollider* probe, std::span<const Eigen::Vector3d> driven_positions_mm,
