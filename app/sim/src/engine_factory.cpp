@@ -33,7 +33,7 @@ std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::
                                                hal::JobSystem* jobs) {
   switch (kind) {
     case EngineKind::kPcgFem:
-      return std::make_unique<LinearFem>(mesh, tet_materials, fixed_nodes, settings.fem);
+      return std::make_unique<LinearFem>(mesh, tet_materials, fixed_nodes, settings.fem, jobs);
     case EngineKind::kMsdsExplicit:
       return std::make_unique<MsdsEngine>(MsdsIntegrator::kExplicitEuler, mesh, tet_materials,
                                           fixed_nodes, settings.msds, jobs);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
@@ -30,7 +31,8 @@ struct FemStepStats {
 // budget per frame, warm-started from the previous frame. Nodes inside the probe collider and
 // fixed nodes are Dirichlet constraints; CG runs on the free degrees of freedom only.
 //
-// Units: positions mm, moduli kPa, so K u is in mN. Single-threaded; step() does not allocate.
+// Units: positions mm, moduli kPa, so K u is in mN. With a job system, each CG product runs in
+// row bands on its threads (the rest of a step on the caller); step() does not allocate.
 // As a DeformationEngine (the kiosk's method (a)): probe contact by any ProbeCollider shape, and a
 // press so deep that more than max_inverted_fraction of the tets invert keeps the last good shape.
 class LinearFem final : public DeformationEngine {
@@ -38,8 +40,11 @@ class LinearFem final : public DeformationEngine {
   // tet_materials: one material per tet; fixed_nodes: one flag per node (nonzero = fixed).
   // Throws std::invalid_argument when no node is fixed (the stiffness would be singular), a tet
   // has no positive volume, or a material is out of its physical range. Allocates.
+  // `jobs`, if given, must outlive the engine; none when it is itself one task of a job system's
+  // (a stitched sub-volume: tasks must not run jobs).
   LinearFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
-            std::span<const std::uint8_t> fixed_nodes, const FemSettings& settings);
+            std::span<const std::uint8_t> fixed_nodes, const FemSettings& settings,
+            hal::JobSystem* jobs = nullptr);
 
   // Holds node `node` at the given displacement (mm) until released; fixed nodes stay at zero.
   // Does not allocate.
@@ -102,11 +107,12 @@ class LinearFem final : public DeformationEngine {
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();
-  // out = (K + A) p, A the anchor springs' diagonal stiffness.
+  // out = (K + A) p, A the anchor springs' diagonal stiffness; in row bands on the job system.
   void system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) const;
   void update_deformed();
 
   FemSettings settings_;
+  hal::JobSystem* jobs_ = nullptr;
   std::vector<Eigen::Vector3d> rest_;
   std::vector<std::uint8_t> fixed_;
   std::vector<std::uint8_t> prescribed_;
