@@ -95,18 +95,17 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   write_stats(out, r.frame);
   out << ",\n  \"frame_time_render_capped\": ";
   write_stats(out, r.frame_render_capped);
-  out << ",\n  \"frame_time_by_method\": {";
-  for (std::size_t i = 0; i < r.frame_by_method.size(); ++i) {
-    out << (i ? ",\n    " : "\n    ") << quoted(r.frame_by_method[i].method) << ": ";
-    write_stats(out, r.frame_by_method[i].whole);
-  }
-  out << "\n  }";
-  out << ",\n  \"frame_time_by_method_render_capped\": {";
-  for (std::size_t i = 0; i < r.frame_by_method.size(); ++i) {
-    out << (i ? ",\n    " : "\n    ") << quoted(r.frame_by_method[i].method) << ": ";
-    write_stats(out, r.frame_by_method[i].render_capped);
-  }
-  out << "\n  }";
+  const auto write_by_method = [&](const char* key,
+                                   sched::FrameTimeStats RunReport::MethodFrames::*frames) {
+    out << ",\n  \"" << key << "\": {";
+    for (std::size_t i = 0; i < r.frame_by_method.size(); ++i) {
+      out << (i ? ",\n    " : "\n    ") << quoted(r.frame_by_method[i].method) << ": ";
+      write_stats(out, r.frame_by_method[i].*frames);
+    }
+    out << "\n  }";
+  };
+  write_by_method("frame_time_by_method", &RunReport::MethodFrames::whole);
+  write_by_method("frame_time_by_method_render_capped", &RunReport::MethodFrames::render_capped);
   // Per task: its run times against its own budget, and what the scheduler did with it.
   out << ",\n  \"tasks\": {";
   for (std::size_t i = 0; i < r.tasks.size(); ++i) {

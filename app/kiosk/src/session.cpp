@@ -48,6 +48,17 @@ std::vector<std::uint8_t> skin_face_nodes(const TissueCase& tissue) {
   return skin;
 }
 
+// Seconds from `last_us` to `now_us`, within [min_s, max_s] (`first_s` before any), and `now_us`
+// becomes `last_us`: a step over the time since the last one, never a giant one after a stall.
+double seconds_since(hal::TimestampUs& last_us, hal::TimestampUs now_us, double first_s,
+                     double min_s, double max_s) {
+  const double seconds =
+      last_us < 0 ? first_s
+                  : std::clamp(static_cast<double>(now_us - last_us) * 1e-6, min_s, max_s);
+  last_us = now_us;
+  return seconds;
+}
+
 }  // namespace
 
 Session::Session(const TissueCase& tissue, const config::AppSettings& settings,
@@ -201,10 +212,7 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   const hal::TimestampUs t0 = clock_.now_us();
   // Dynamic methods integrate over the time since the last frame (a 60 Hz frame at first, and
   // never more than 0.1 s: a stalled frame must not become one giant step).
-  const double frame_dt_s =
-      last_update_us_ < 0 ? 1.0 / 60.0
-                          : std::clamp(static_cast<double>(t0 - last_update_us_) * 1e-6, 1e-4, 0.1);
-  last_update_us_ = t0;
+  const double frame_dt_s = seconds_since(last_update_us_, t0, 1.0 / 60.0, 1e-4, 0.1);
   std::optional<sim::ProbeCollider> collider = probe_collider();
   // A press the method refused as too deep for it (Recovery::kKeptLastGood) is not tried again
   // every frame while the probe stays as deep: each try costs the method several attempts (a
@@ -301,13 +309,9 @@ void Session::update_view() {
   // The skin over the tissue and around it, struck by the probe (it is the view's: it moves
   // when the view is refreshed, by the time since it last moved: a frame's at least, at most
   // 0.1 s, so frames the scheduler skipped the view in do not slow its springing back).
-  const hal::TimestampUs now = clock_.now_us();
   const double frame_s = static_cast<double>(settings_.frame.budget_us) * 1e-6;
-  const double skin_dt_s = last_view_us_ < 0
-                               ? frame_s
-                               : std::clamp(static_cast<double>(now - last_view_us_) * 1e-6,
-                                            frame_s, std::max(frame_s, 0.1));
-  last_view_us_ = now;
+  const double skin_dt_s =
+      seconds_since(last_view_us_, clock_.now_us(), frame_s, frame_s, std::max(frame_s, 0.1));
   const std::optional<sim::ProbeCollider> collider = probe_collider();
   skin_.step(deformed, collider ? &*collider : nullptr, skin_dt_s);
   surface_views_.assign(structures_.views().begin(), structures_.views().end());

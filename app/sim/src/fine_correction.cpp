@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "jacobi_cg.hpp"
+
 namespace ultrasim::sim {
 
 FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
@@ -124,22 +126,15 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   const double load = r_.norm();
   gather(r_, true);
   x_.setZero();
-  z_ = r_.cwiseProduct(inverse_diagonal_);
+  z_ = inverse_diagonal_.cwiseProduct(r_);
   p_ = z_;
   double rz = r_.dot(z_);
   double norm = r_.norm();
   while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * load &&
          (!may_continue || may_continue())) {
     multiply(p_, q_, jobs);
-    const double curvature = p_.dot(q_);
-    if (!(curvature > 0.0)) break;  // not positive definite along p: stop with what there is
-    const double alpha = rz / curvature;
-    x_.noalias() += alpha * p_;
-    r_.noalias() -= alpha * q_;
-    z_ = r_.cwiseProduct(inverse_diagonal_);
-    const double next_rz = r_.dot(z_);
-    p_ = z_ + (next_rz / rz) * p_;
-    rz = next_rz;
+    // Not positive definite along p: stop with what there is.
+    if (!jacobi_cg_update(inverse_diagonal_, q_, x_, r_, z_, p_, rz)) break;
     norm = r_.norm();
     ++result.iterations;
   }

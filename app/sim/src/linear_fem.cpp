@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "jacobi_cg.hpp"
 #include "model_checks.hpp"
 
 namespace ultrasim::sim {
@@ -249,15 +250,8 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
     }
     system_times(p_, q_);
     q_.array() *= free_mask_.array();
-    const double pq = p_.dot(q_);
-    if (!(pq > 0)) break;  // converged to rounding or the system lost definiteness
-    const double alpha = rz / pq;
-    u_.noalias() += alpha * p_;
-    r_.noalias() -= alpha * q_;
-    z_ = inverse_diagonal_.cwiseProduct(r_);
-    const double rz_next = r_.dot(z_);
-    p_ = z_ + (rz_next / rz) * p_;
-    rz = rz_next;
+    // Converged to rounding or the system lost definiteness: stop.
+    if (!jacobi_cg_update(inverse_diagonal_, q_, u_, r_, z_, p_, rz)) break;
     residual = r_.norm();
     ++it;
   }

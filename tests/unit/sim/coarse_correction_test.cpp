@@ -20,13 +20,7 @@ namespace {
 
 using Region = testing::SlabRegion;
 using testing::max_norm;
-
-// A slab, softer on top.
-Region make_region(const Eigen::Vector3i& nodes) {
-  return testing::make_slab_region(nodes, [](const Eigen::Vector3d& c) {
-    return c.z() < 4 ? Material{1, "fat", 20.0, 0.45} : Material{2, "muscle", 50.0, 0.45};
-  });
-}
+constexpr auto make_region = testing::make_fat_over_muscle_slab;
 
 // A smooth field, largest at the skin, zero at the fixed base.
 Eigen::VectorXd smooth_field(const Region& r) {

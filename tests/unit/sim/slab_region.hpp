@@ -36,6 +36,13 @@ SlabRegion make_slab_region(const Eigen::Vector3i& nodes, MaterialAt material_at
   return r;
 }
 
+// The stitching tests' slab: fat in its top 4 mm over muscle.
+inline SlabRegion make_fat_over_muscle_slab(const Eigen::Vector3i& nodes) {
+  return make_slab_region(nodes, [](const Eigen::Vector3d& c) {
+    return c.z() < 4 ? Material{1, "fat", 20.0, 0.45} : Material{2, "muscle", 50.0, 0.45};
+  });
+}
+
 // The largest node displacement (max over nodes of the 3-vector norm), mm.
 inline double max_norm(const Eigen::VectorXd& u_mm) {
   double m = 0.0;

@@ -1,0 +1,27 @@
+#pragma once
+
+#include <Eigen/Core>
+
+namespace ultrasim::sim {
+
+// One update of Jacobi-preconditioned conjugate gradients once the caller has q = A p (the
+// product is each solver's own: masked, banded, summed over copies): x += α p, r −= α q,
+// z = M⁻¹ r, p = z + β p, with α = rz / pᵀq and rz updated to rᵀz. Returns false and changes
+// nothing when pᵀq is not positive (converged to rounding, or A not definite along p). Does not
+// allocate.
+inline bool jacobi_cg_update(const Eigen::VectorXd& inverse_diagonal, const Eigen::VectorXd& q,
+                             Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::VectorXd& z,
+                             Eigen::VectorXd& p, double& rz) {
+  const double pq = p.dot(q);
+  if (!(pq > 0.0)) return false;
+  const double alpha = rz / pq;
+  x.noalias() += alpha * p;
+  r.noalias() -= alpha * q;
+  z = inverse_diagonal.cwiseProduct(r);
+  const double next_rz = r.dot(z);
+  p = z + (next_rz / rz) * p;
+  rz = next_rz;
+  return true;
+}
+
+}  // namespace ultrasim::sim
