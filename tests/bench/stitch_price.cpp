@@ -1,7 +1,7 @@
 // The price of stitching and of skipping sub-volumes, as CSVs for the chart (docs/accuracy.md):
-//   build/ci/tests/bench/stitch_price --out DIR [--quick] [--variant NAME]
+//   build/ci/tests/bench/stitch_price --out DIR [--quick] [--variant NAME] [--path-only]
 //   /usr/bin/python3 scripts/plot_engines.py --stitching DIR --out docs/images
-// writes DIR/stitch-frames.csv and DIR/stitch-stiffness.csv.
+// writes DIR/stitch-frames.csv, DIR/stitch-stiffness.csv and DIR/stitch-path.csv.
 //
 // The region of table 5.1 (25 sub-volumes of 12³ nodes, one 52 × 52 × 12 grid, 2 mm spacing,
 // fat over muscle, fixed at the bottom) under the published sphere probe, in two scenarios:
@@ -20,6 +20,10 @@
 //              and the sub-volumes stepped.
 //   stiffness: the seam spring's stiffness per modulus from 1 to 200 mm, placed scenario after
 //              its hold: the gap and the error.
+//   path:      one piece against itself: the placed probe put down 0.01 mm to the side, or
+//              lowered over 4 frames instead of at once, 10 and 199 frames after it stops. The
+//              stick contact makes the answer depend on the way in; this is the floor under any
+//              stitched-against-one-piece error (--path-only: this study alone, ~40 s).
 // A study, not a benchmark: nothing is timed and nothing here asserts (stitched_volume_test
 // does). Takes a few minutes.
 
@@ -144,6 +148,43 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
   }
 }
 
+// How far one piece's own answer moves when the probe comes down another way: the floor below
+// which a stitched run's error cannot be told from the contact's dependence on the path.
+void path_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
+  out << "method,path,frames_at_rest,error\n";
+  struct Path {
+    const char* name;
+    double offset_mm;
+    int lowering_frames;
+  };
+  constexpr Path kPaths[] = {{"offset-0.01mm", 0.01, 1}, {"lowered-over-4-frames", 0.0, 4}};
+  for (auto method : kMethods) {
+    auto reference = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+    std::vector<Eigen::VectorXd> placed;
+    for (int f = 0; f < kPlacedFrames; ++f) {
+      const auto probe = placed_probe();
+      reference->step(&probe, kFrameDtS);
+      placed.push_back(reference->displacements_mm());
+    }
+    for (const Path& p : kPaths) {
+      auto other = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+      for (int f = 0; f < kPlacedFrames + p.lowering_frames - 1; ++f) {
+        const double depth = 4.0 * std::min(1.0, (f + 1.0) / p.lowering_frames);
+        const auto probe = bench::sphere_probe(kCornerMm + p.offset_mm, kCornerMm, depth);
+        other->step(&probe, kFrameDtS);
+        const int at_rest = f - (p.lowering_frames - 1);
+        if (at_rest == 10 || at_rest == kPlacedFrames - 1) {
+          const double error =
+              max_norm(other->displacements_mm() - placed[at_rest]) / max_norm(placed[at_rest]);
+          out << sim::engine_key(method) << ',' << p.name << ',' << at_rest << ',' << error << '\n';
+          std::fprintf(stderr, "path: %s %s, %d frames at rest: %.4f\n",
+                       sim::engine_key(method).data(), p.name, at_rest, error);
+        }
+      }
+    }
+  }
+}
+
 void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
   out << "method,stiffness_per_modulus_mm,error,gap_mm\n";
   const auto probe = placed_probe();
@@ -174,13 +215,16 @@ int main(int argc, char** argv) {
   std::string dir;
   std::string only;
   bool quick = false;
+  bool path_only = false;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--out") == 0 && i + 1 < argc) dir = argv[i + 1];
     if (std::strcmp(argv[i], "--variant") == 0 && i + 1 < argc) only = argv[i + 1];
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+    if (std::strcmp(argv[i], "--path-only") == 0) path_only = true;
   }
   if (dir.empty()) {
-    std::fprintf(stderr, "usage: stitch_price --out DIR [--quick] [--variant NAME]\n");
+    std::fprintf(stderr,
+                 "usage: stitch_price --out DIR [--quick] [--variant NAME] [--path-only]\n");
     return 2;
   }
   const Region r = bench::make_region(kSide, kDepth);
@@ -191,7 +235,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "stitch_price: cannot write in %s\n", dir.c_str());
     return 1;
   }
+  if (path_only) {
+    std::ofstream path(dir + "/stitch-path.csv");
+    path_study(r, jobs, path);
+    return 0;
+  }
   frames_study(r, jobs, quick, only, frames);
-  if (!quick) stiffness_study(r, jobs, stiffness);
+  if (!quick) {
+    stiffness_study(r, jobs, stiffness);
+    std::ofstream path(dir + "/stitch-path.csv");
+    path_study(r, jobs, path);
+  }
   return 0;
 }
