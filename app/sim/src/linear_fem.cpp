@@ -144,6 +144,12 @@ void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
   update_deformed();
 }
 
+void LinearFem::move_held_node_mm(int node, const Eigen::Vector3d& position_mm) {
+  if (fixed_[node] || !holds_node(node)) return;
+  u_.segment<3>(3 * node) = position_mm - rest_[node];
+  deformed_[node] = position_mm;
+}
+
 void LinearFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
   check_anchor_springs(anchors, node_count());
   for (int node : anchored_nodes_) {

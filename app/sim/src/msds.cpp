@@ -968,6 +968,18 @@ void MsdsEngine::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
   publish_state();
 }
 
+void MsdsEngine::move_held_node_mm(int node, const Eigen::Vector3d& position_mm) {
+  if (pinned_[node] || !held_[node]) return;
+  probe_clearance_mm_[node] -= (position_mm - position_[node]).lpNorm<1>();
+  const int block = node / kNodesPerChunk;
+  block_min_clearance_mm_[block] =
+      std::min(block_min_clearance_mm_[block], probe_clearance_mm_[node]);
+  position_.set(node, position_mm);
+  if (explicit_) explicit_->state[explicit_->current].set(node, position_mm, velocity_[node]);
+  x_[node] = position_mm;
+  u_.segment<3>(3 * node) = position_mm - rest_[node];
+}
+
 double MsdsEngine::kinetic_energy_uj() const {
   double energy = 0.0;
   for (int i = 0; i < node_count(); ++i) energy += 0.5 * mass_kg_[i] * velocity_[i].squaredNorm();

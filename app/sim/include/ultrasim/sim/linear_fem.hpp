@@ -82,6 +82,7 @@ class LinearFem final : public DeformationEngine {
     return fixed_[node] != 0 || prescribed_[node] != 0 || in_contact_[node] != 0;
   }
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
+  void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
   // Nodal forces K u (− the anchor's pull) on node n, mN: the reaction where the node is
   // constrained, ~0 where free.

@@ -171,6 +171,7 @@ class MsdsEngine final : public DeformationEngine {
   void tissue_forces_mn(Eigen::VectorXd& forces_mn) const override;
   bool holds_node(int node) const override { return !moves(node); }
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
+  void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
   // Runs `steps` integration steps of `dt_s` (with the probe's contact) and nothing else: no
   // divergence check, no recovery. For measuring stability limits in tests and benches.

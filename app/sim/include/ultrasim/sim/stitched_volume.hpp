@@ -48,9 +48,12 @@ struct StitchStepStats {
 // k × (copies − 1) toward the mean of the other copies, the same force as the pairwise springs.
 // A frame alternates as published: every stepped sub-volume first takes its anchors from the
 // others' current positions (all at once, so the sub-volumes step in parallel on the job system,
-// one sub-volume per task), then steps. With [stitching] coarse_correction, a coarse-grid step
-// over the whole region follows (CoarseCorrection). The region shows each shared node at the mean
-// of its copies (the published midpoint fix), so no gap shows; the gap before that is reported.
+// one sub-volume per task), then steps. The copies of a shared node that the probe holds in
+// several sub-volumes (each where its own contact caught it) are then put at their mean, where the
+// next step's contact takes them up alike: a node has one place on the probe. With [stitching]
+// coarse_correction, a coarse-grid step over the whole region follows (CoarseCorrection). The
+// region shows each shared node at the mean of its copies (the published midpoint fix), so no gap
+// shows; the gap before that is reported.
 //
 // As a DeformationEngine it is one engine on the whole grid's mesh: positions, displacements and
 // the live switch are on the grid's nodes. Units as the engines'. The frame thread owns it; step()
@@ -158,6 +161,9 @@ class StitchedVolume final : public DeformationEngine {
   // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
   // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
   // reach test widens by the move.
+  // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
+  // its copy, to their mean: the next step's contact test takes them up in one place.
+  void join_held_copies();
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
   // Σ of the positions of grid node g's copies.
