@@ -3,6 +3,8 @@
 #include <Eigen/CholmodSupport>
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -13,6 +15,41 @@ namespace ultrasim::sim {
 
 struct ExactFem::Factor {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
+  // CHOLMOD's solve writes workspace inside `llt`: one solve at a time, frame or background.
+  std::mutex mutex;
+
+  // K⁻¹'s three columns at `node`'s DOFs (n_free × 3). Allocates.
+  Columns columns_at(int node, const std::vector<int>& global_to_free) {
+    Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(llt.rows()), 3);
+    for (int i = 0; i < 3; ++i) unit(global_to_free[3 * node + i], i) = 1.0;
+    std::lock_guard lock(mutex);
+    return llt.solve(unit);
+  }
+};
+
+// One node's Green's functions solved on the job system's background thread: a budgeted frame
+// defers a node it has none for, the background solves it beside the frames, and a later frame
+// takes the columns into the cache.
+struct ExactFem::BackgroundSolve {
+  enum class State { kIdle, kQueued, kDone };
+  Factor* factor = nullptr;
+  const std::vector<int>* global_to_free = nullptr;
+  std::mutex mutex;
+  std::condition_variable done;
+  State state = State::kIdle;  // under `mutex`
+  int node = -1;               // written before posting, read by the background thread
+  Columns columns;             // the background thread's result
+
+  static void run(void* self) {
+    auto& solve = *static_cast<BackgroundSolve*>(self);
+    Columns columns = solve.factor->columns_at(solve.node, *solve.global_to_free);
+    {
+      std::lock_guard lock(solve.mutex);
+      solve.columns.swap(columns);
+      solve.state = State::kDone;
+    }
+    solve.done.notify_all();
+  }
 };
 
 namespace {
@@ -48,6 +85,7 @@ ExactFem::ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_
       tets_(mesh.tets),
       fixed_(fixed_nodes.begin(), fixed_nodes.end()),
       factor_(std::make_unique<Factor>()),
+      background_(std::make_unique<BackgroundSolve>()),
       node_slot_(mesh.rest_positions_mm.size(), -1),
       node_constrained_index_(mesh.rest_positions_mm.size(), -1),
       in_contact_(mesh.rest_positions_mm.size(), 0),
@@ -107,9 +145,16 @@ ExactFem::ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_
   u_free_ = Eigen::VectorXd::Zero(n_free);
   rhs_free_ = Eigen::VectorXd::Zero(n_free);
   precompute_candidates(contact_candidates);
+  background_->factor = factor_.get();
+  background_->global_to_free = &global_to_free_;
 }
 
-ExactFem::~ExactFem() = default;
+ExactFem::~ExactFem() {
+  // A queued or running background solve uses the factor and writes into background_.
+  std::unique_lock lock(background_->mutex);
+  background_->done.wait(lock,
+                         [&] { return background_->state != BackgroundSolve::State::kQueued; });
+}
 
 void ExactFem::precompute_candidates(std::span<const std::uint8_t> contact_candidates) {
   candidate_slot_.assign(rest_.size(), -1);
@@ -178,7 +223,10 @@ void ExactFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
 void ExactFem::refresh_load_response(ExactFemStepStats& stats) {
   if (!loads_dirty_) return;
   for (int f = 0; f < free_dof_count(); ++f) rhs_free_[f] = load_mn_[free_to_global_[f]];
-  load_response_ = factor_->llt.solve(rhs_free_);
+  {
+    std::lock_guard lock(factor_->mutex);
+    load_response_ = factor_->llt.solve(rhs_free_);
+  }
   loads_dirty_ = false;
   stats.load_solves = 1;
 }
@@ -188,12 +236,19 @@ void ExactFem::ensure_columns(int node, ExactFemStepStats& stats) {
     stats.columns_reused += 3;
     return;
   }
-  int slot = node_slot_[node];
-  if (slot >= 0) {
+  if (node_slot_[node] >= 0) {
     stats.columns_reused += 3;
-    last_use_[slot] = frame_;
+    last_use_[node_slot_[node]] = frame_;
     return;
   }
+  const int slot = take_cache_slot(node);
+  cache_columns_[slot] = factor_->columns_at(node, global_to_free_);
+  stats.columns_computed += 3;
+  total_columns_computed_ += 3;
+}
+
+int ExactFem::take_cache_slot(int node) {
+  int slot = -1;
   if (static_cast<int>(cache_slot_node_.size()) >= settings_.max_cached_nodes) {
     // Evict the least recently used node not held this frame (those carry frame_).
     int oldest = frame_;
@@ -211,15 +266,37 @@ void ExactFem::ensure_columns(int node, ExactFemStepStats& stats) {
     cache_columns_.emplace_back();
     last_use_.push_back(0);
   }
-  const int n_free = free_dof_count();
-  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(n_free, 3);
-  for (int i = 0; i < 3; ++i) unit(global_to_free_[3 * node + i], i) = 1.0;
-  cache_columns_[slot] = factor_->llt.solve(unit);
   cache_slot_node_[slot] = node;
   node_slot_[node] = slot;
   last_use_[slot] = frame_;
-  stats.columns_computed += 3;
+  return slot;
+}
+
+void ExactFem::adopt_background_solve() {
+  std::lock_guard lock(background_->mutex);
+  if (background_->state != BackgroundSolve::State::kDone) return;
+  background_->state = BackgroundSolve::State::kIdle;
+  const int node = background_->node;
+  // An unbudgeted frame may have computed the same columns meanwhile.
+  if (candidate_slot_[node] >= 0 || node_slot_[node] >= 0) return;
+  cache_columns_[take_cache_slot(node)].swap(background_->columns);
   total_columns_computed_ += 3;
+}
+
+void ExactFem::request_background_solve() {
+  if (jobs_ == nullptr) return;
+  const auto deferred = std::find(deferred_.begin(), deferred_.end(), 1);
+  if (deferred == deferred_.end()) return;
+  {
+    std::lock_guard lock(background_->mutex);
+    if (background_->state != BackgroundSolve::State::kIdle) return;
+    background_->node = static_cast<int>(deferred - deferred_.begin());
+    background_->state = BackgroundSolve::State::kQueued;
+  }
+  if (!jobs_->post_background(&BackgroundSolve::run, background_.get())) {
+    std::lock_guard lock(background_->mutex);
+    background_->state = BackgroundSolve::State::kIdle;  // no background thread, or it is busy
+  }
 }
 
 Eigen::Matrix3d ExactFem::green_block(int a, int b) const {
@@ -487,8 +564,9 @@ EngineStepStats ExactFem::step(const ProbeCollider* probe, double frame_dt_s) {
 EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame_dt_s*/,
                                       const StepBudget& may_continue) {
   // One node's Green's functions are a full solve with the factor (~30 ms at 9k nodes): more
-  // than a frame's budget ever holds, so under a budget none is computed (the budget is not
-  // asked), and a node without them is not held.
+  // than a frame's budget ever holds, so under a budget none is computed on the frame (the
+  // budget is not asked), and a node without them is not held; the job system's background
+  // thread, where there is one, solves for one such node at a time.
   defer_uncached_ = static_cast<bool>(may_continue);
   // Later unbudgeted steps compute what they need, even if this one throws.
   struct Reset {
@@ -496,9 +574,11 @@ EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame
     ~Reset() { flag = false; }
   } reset{defer_uncached_};
   std::fill(deferred_.begin(), deferred_.end(), 0);
+  adopt_background_solve();
   last_good_u_ = u_;
   EngineStepStats out = solve_probe(probe);
   out.cut_short = std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end();
+  if (out.cut_short) request_background_solve();
   return out;
 }
 

@@ -1,8 +1,11 @@
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 
 #include <gtest/gtest.h>
+#include <pthread.h>
+#include <sched.h>
 
 #include <atomic>
+#include <latch>
 #include <numeric>
 #include <set>
 #include <thread>
@@ -61,6 +64,57 @@ TEST(ThreadPool, AMissingJobSystemRunsTheTasksInOrderOnTheCaller) {
   hal::JobSystem* jobs = &pool;
   hal::parallel_for(jobs, 64, [&](int i) { hits[i].fetch_add(1); });
   for (const auto& h : hits) EXPECT_EQ(h.load(), 1);
+}
+
+// The background lane: one task at a time, on a thread of its own at idle priority.
+TEST(ThreadPool, RunsABackgroundTaskOnAnIdlePriorityThreadOfItsOwn) {
+  ThreadPool pool(2);
+  struct Seen {
+    std::thread::id thread;
+    int policy = -1;
+  } seen;
+  const auto look = [](void* context) {
+    auto& s = *static_cast<Seen*>(context);
+    s.thread = std::this_thread::get_id();
+    sched_param param{};
+    pthread_getschedparam(pthread_self(), &s.policy, &param);
+  };
+  ASSERT_TRUE(pool.post_background(look, &seen));
+  pool.background().wait_idle();
+  EXPECT_NE(seen.thread, std::this_thread::get_id());
+  EXPECT_NE(seen.thread, std::thread::id());
+  // Lowering one's own priority needs no privilege on Linux.
+  EXPECT_TRUE(pool.background().idle_priority());
+  EXPECT_EQ(seen.policy, SCHED_IDLE);
+}
+
+TEST(ThreadPool, TakesOneBackgroundTaskAtATimeAndRunsEveryOnePosted) {
+  std::latch started(1), release(1);
+  std::atomic<int> runs{0};
+  struct Gate {
+    std::latch* started;
+    std::latch* release;
+    std::atomic<int>* runs;
+  } gate{&started, &release, &runs};
+  const auto wait_at_gate = [](void* context) {
+    auto& g = *static_cast<Gate*>(context);
+    g.started->count_down();
+    g.release->wait();
+    g.runs->fetch_add(1);
+  };
+  {
+    ThreadPool pool(2);
+    ASSERT_TRUE(pool.post_background(wait_at_gate, &gate));
+    started.wait();
+    EXPECT_FALSE(pool.post_background(wait_at_gate, &gate)) << "one is running";
+    release.count_down();
+    pool.background().wait_idle();
+    EXPECT_EQ(runs.load(), 1);
+    EXPECT_TRUE(pool.post_background(wait_at_gate, &gate)) << "idle again";
+  }  // the pool runs the second before it goes (the gates are open now)
+  EXPECT_EQ(runs.load(), 2);
+  hal::InlineJobSystem inline_jobs;
+  EXPECT_FALSE(inline_jobs.post_background(wait_at_gate, &gate)) << "no background thread";
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
 
@@ -187,6 +188,90 @@ TEST(StepBudget, ExactFemHoldsNoNodeWithoutGreensFunctionsAndComputesNoneUnderAB
   EXPECT_EQ(cached.total_columns_computed(), computed);
   EXPECT_EQ(again.contact_nodes, unlimited.last_solve_stats().contact_nodes);
   EXPECT_EQ(cached.displacements_mm(), unlimited.displacements_mm());
+}
+
+// A job system whose background thread is the test: post_background() keeps the task until
+// run_background() runs it, so the frames and the background interleave as the test says.
+class ManualBackground final : public hal::JobSystem {
+ public:
+  int thread_count() const override { return 1; }
+  void run(int task_count, void (*task)(void*, int), void* context) override {
+    for (int i = 0; i < task_count; ++i) task(context, i);
+  }
+  bool post_background(void (*task)(void*), void* context) override {
+    if (task_ != nullptr) return false;
+    task_ = task;
+    context_ = context;
+    return true;
+  }
+  bool run_background() {
+    if (task_ == nullptr) return false;
+    auto* task = task_;
+    task_ = nullptr;
+    task(context_);
+    return true;
+  }
+
+ private:
+  void (*task_)(void*) = nullptr;
+  void* context_ = nullptr;
+};
+
+// Under a budget on every frame, the nodes a press defers get their Green's functions from the
+// background one at a time, and the frames converge to the unbudgeted answer; no frame solves.
+TEST(StepBudget, ExactFemGetsTheGreensFunctionsItDeferredFromTheBackground) {
+  const Block b = make_block();
+  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
+  const ProbeCollider probe = pressed(2.0);
+  // The answer: unbudgeted frames until the active set stops moving.
+  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
+  for (int frame = 0; frame < 30; ++frame) unlimited.step(&probe, 1.0 / 60);
+  ManualBackground jobs;
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin, &jobs);
+  const long long precomputed = budgeted.total_columns_computed();
+  int background_solves = 0;
+  EngineStepStats last;
+  for (int frame = 0; frame < 200; ++frame) {
+    const long long before = budgeted.total_columns_computed();
+    last = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
+    // A frame takes at most the one node the background finished: 3 columns, no solve.
+    ASSERT_LE(budgeted.total_columns_computed() - before, 3) << "frame " << frame;
+    if (!last.cut_short) break;
+    ASSERT_TRUE(jobs.run_background()) << "a cut-short frame asks for a node, frame " << frame;
+    ++background_solves;
+  }
+  EXPECT_FALSE(last.cut_short);
+  EXPECT_FALSE(jobs.run_background()) << "nothing left to ask for";
+  // The active set settles over a few more frames, as the unbudgeted one's did.
+  for (int frame = 0; frame < 30; ++frame) {
+    last = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
+    ASSERT_FALSE(last.cut_short);
+  }
+  EXPECT_GT(background_solves, 1);
+  EXPECT_EQ(budgeted.total_columns_computed() - precomputed, 3 * background_solves);
+  EXPECT_EQ(last.contact_nodes, unlimited.last_solve_stats().contact_nodes);
+  EXPECT_LT(max_abs(budgeted.displacements_mm() - unlimited.displacements_mm()), 1e-9);
+  std::printf("%d nodes solved in the background, one a frame\n", background_solves);
+}
+
+// The same with the kiosk's thread pool: its background thread solves while the test waits.
+TEST(StepBudget, ExactFemConvergesWithThePoolsBackgroundThread) {
+  const Block b = make_block();
+  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
+  const ProbeCollider probe = pressed(2.0);
+  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
+  for (int frame = 0; frame < 30; ++frame) unlimited.step(&probe, 1.0 / 60);
+  drivers::posix::ThreadPool jobs(2);
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin, &jobs);
+  EngineStepStats last;
+  for (int frame = 0; frame < 200; ++frame) {
+    last = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
+    if (!last.cut_short) break;
+    jobs.background().wait_idle();
+  }
+  EXPECT_FALSE(last.cut_short);
+  for (int frame = 0; frame < 30; ++frame) budgeted.step_within(&probe, 1.0 / 60, kNoTime);
+  EXPECT_LT(max_abs(budgeted.displacements_mm() - unlimited.displacements_mm()), 1e-9);
 }
 
 }  // namespace

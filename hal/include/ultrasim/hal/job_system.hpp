@@ -19,6 +19,15 @@ class JobSystem {
   // returns when all have finished. The caller runs tasks too. Does not allocate. Call from one
   // thread at a time (the frame thread); tasks must not call run() themselves.
   virtual void run(int task_count, void (*task)(void* context, int index), void* context) = 0;
+
+  // Work longer than any frame (a solve of ~30 ms), for a thread of its own at the lowest
+  // priority that takes only the time the frame's threads leave: queues task(context) to run
+  // once there and returns true, or returns false and queues nothing when there is no such
+  // thread (the default) or a task is already queued or running. The caller learns from the
+  // task itself that it has run and keeps `context` alive until then. Does not allocate.
+  virtual bool post_background(void (* /*task*/)(void* context), void* /*context*/) {
+    return false;
+  }
 };
 
 // parallel_for(jobs, n, [&](int i) { ... }): the same with a lambda, without allocating.

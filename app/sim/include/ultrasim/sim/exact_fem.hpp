@@ -69,7 +69,8 @@ class ExactFem final : public DeformationEngine {
  public:
   // tet_materials: one per tet; fixed_nodes: one flag per node (nonzero = fixed at zero);
   // contact_candidates: empty, or one flag per node (nonzero = precompute its Green's functions).
-  // `jobs`, if given, must outlive the engine; it splits the per-frame field update.
+  // `jobs`, if given, must outlive the engine; it splits the per-frame field update and solves
+  // for deferred nodes in the background (step_within()).
   // Throws std::invalid_argument when no node is fixed ("... singular ..."), a tet has no positive
   // volume, a material or setting is out of range, or the stiffness is not positive definite.
   ExactFem(const geometry::TetMesh& mesh, std::span<const Material> tet_materials,
@@ -99,10 +100,12 @@ class ExactFem final : public DeformationEngine {
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // The same, except that nodes whose Green's functions are neither precomputed (the skin) nor
   // cached are not held (a full solve each, ~30 ms on the default case: more than a frame has);
-  // they follow the field and may end up inside the probe, and cut_short says so. Only an
-  // unbudgeted step() fills the cache, so under a budget on every frame (the kiosk) such nodes
-  // stay unheld: deep presses past the skin's candidates are approximate there, not converging.
-  // The budget itself is not asked.
+  // they follow the field and may end up inside the probe, and cut_short says so. Such a node's
+  // solve then goes to the job system's background thread (hal::JobSystem::post_background),
+  // one node at a time, and a later frame takes its columns into the cache: under a budget on
+  // every frame (the kiosk) a deep press past the skin's candidates converges to the exact
+  // answer over a few frames per node. Without a background thread, only an unbudgeted step()
+  // fills the cache. The budget itself is not asked.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
@@ -131,7 +134,8 @@ class ExactFem final : public DeformationEngine {
   int contact_candidate_count() const { return static_cast<int>(candidate_nodes_.size()); }
 
  private:
-  struct Factor;  // CHOLMOD, kept out of the header
+  struct Factor;                                             // CHOLMOD, kept out of the header
+  using Columns = Eigen::Matrix<double, Eigen::Dynamic, 3>;  // one node's K⁻¹ columns
   // One constraint row: direction at a node, target value.
   struct Row {
     int node;
@@ -139,7 +143,15 @@ class ExactFem final : public DeformationEngine {
     double value_mm;
   };
 
+  struct BackgroundSolve;  // one node's columns solved off the frame
+
   void precompute_candidates(std::span<const std::uint8_t> contact_candidates);
+  // A cache slot for `node`'s columns (the least recently used one when full), marked used now.
+  int take_cache_slot(int node);
+  // Frame thread: a finished background solve's columns into the cache; a deferred node's solve
+  // to the background when none is under way.
+  void adopt_background_solve();
+  void request_background_solve();
   void refresh_load_response(ExactFemStepStats& stats);
   // Makes sure `node` has Green's functions available (precomputed or cached).
   void ensure_columns(int node, ExactFemStepStats& stats);
@@ -172,6 +184,7 @@ class ExactFem final : public DeformationEngine {
   std::vector<int> global_to_free_;  // DOF → free index, −1 for fixed DOFs
   std::vector<int> free_to_global_;
   std::unique_ptr<Factor> factor_;
+  std::unique_ptr<BackgroundSolve> background_;
   int factorizations_ = 0;
   long long total_columns_computed_ = 0;
 
@@ -186,7 +199,7 @@ class ExactFem final : public DeformationEngine {
   Eigen::MatrixXd candidate_compliance_;  // 3·candidates × 3·candidates (double)
 
   // Least-recently-used cache of other nodes' columns (double).
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3>> cache_columns_;
+  std::vector<Columns> cache_columns_;
   std::vector<int> cache_slot_node_;
   std::vector<int> node_slot_;
   std::vector<int> last_use_;

@@ -7,6 +7,7 @@
 #include <thread>
 #include <vector>
 
+#include "ultrasim/drivers/posix/background_thread.hpp"
 #include "ultrasim/drivers/posix/realtime.hpp"
 #include "ultrasim/hal/job_system.hpp"
 
@@ -14,7 +15,8 @@ namespace ultrasim::drivers::posix {
 
 // hal::JobSystem on a fixed set of worker threads started once. run() wakes the workers, hands
 // out task indices through an atomic counter (the caller takes its share too) and waits until
-// every task has finished. Nothing is allocated per run.
+// every task has finished. Nothing is allocated per run. post_background() goes to one more
+// thread at idle priority (BackgroundThread), never realtime.
 class ThreadPool final : public hal::JobSystem {
  public:
   // thread_count includes the calling thread: ThreadPool(2) starts one worker. Values < 1 → 1.
@@ -29,6 +31,10 @@ class ThreadPool final : public hal::JobSystem {
   // What each worker got of the realtime request (empty without one).
   const std::vector<ThreadRealtime>& worker_realtime() const { return worker_realtime_; }
   void run(int task_count, void (*task)(void*, int), void* context) override;
+  bool post_background(void (*task)(void*), void* context) override {
+    return background_.post(task, context);
+  }
+  BackgroundThread& background() { return background_; }
 
  private:
   void worker_loop();
@@ -46,6 +52,8 @@ class ThreadPool final : public hal::JobSystem {
   void* context_ = nullptr;
   int task_count_ = 0;
   std::atomic<int> next_{0};
+  // Last: destroyed (its task finished) before the state above.
+  BackgroundThread background_;
 };
 
 }  // namespace ultrasim::drivers::posix
