@@ -10,6 +10,7 @@
 #include <set>
 
 #include "slab_region.hpp"
+#include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -391,6 +392,40 @@ TEST(StitchedVolume, BudgetDefersAllButTheTouchedAndSelectiveOffStepsAll) {
   EXPECT_FALSE(all.step(&probe, 1.0 / 60).cut_short);
   EXPECT_EQ(all.last_stitch_stats().sub_volumes_stepped, 16);
   EXPECT_EQ(all.last_stitch_stats().sub_volumes_asleep, 0);
+}
+
+// The stitched PCG FEM's sub-volumes take the frame's budget into their own CG: without time,
+// one iteration each (against the configured 20), from two threads asking one budget; with the
+// budget always saying yes, the same frame as an unbudgeted one.
+TEST(StitchedVolume, PcgSubVolumesIterateOnlyWhileTheFrameHasTime) {
+  const Region r = make_region({26, 26, 5});
+  drivers::posix::ThreadPool jobs(2);
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);  // on the middle seams
+  StitchedVolume starved(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                         stitching, &jobs);
+  int asked = 0;
+  const EngineStepStats cut = starved.step_within(&probe, 1.0 / 60, [&asked] {
+    ++asked;
+    return false;
+  });
+  const int touched = starved.last_stitch_stats().sub_volumes_touched;
+  ASSERT_GE(touched, 2) << "the test needs sub-volumes stepping in parallel";
+  EXPECT_EQ(cut.iterations, touched) << "one CG iteration per touched sub-volume";
+  EXPECT_TRUE(cut.cut_short);
+  EXPECT_GE(asked, touched);
+  EXPECT_TRUE(starved.displacements_mm().allFinite());
+
+  StitchedVolume unlimited(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                           stitching, &jobs);
+  StitchedVolume always(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                        stitching, &jobs);
+  const EngineStepStats full = unlimited.step(&probe, 1.0 / 60);
+  const EngineStepStats yes = always.step_within(&probe, 1.0 / 60, [] { return true; });
+  EXPECT_GT(full.iterations, 10 * touched);
+  EXPECT_EQ(yes.iterations, full.iterations);
+  EXPECT_EQ(always.displacements_mm(), unlimited.displacements_mm());
 }
 
 TEST(StitchedVolume, ShowsSharedNodesAtTheirCopiesMeanAndTakesALiveSwitch) {

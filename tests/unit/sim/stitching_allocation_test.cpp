@@ -38,10 +38,18 @@ TEST(StitchingAllocation, AStitchedFrameDoesNotAllocateOnceWarmedUp) {
           stitched.step(&p, 1.0 / 60);
         }
         long allocations = 0;
+        // Every other frame under a budget (the kiosk's: a lambda capturing one pointer) that
+        // lets half the CG iterations through.
+        int asked = 0;
+        const StepBudget budget = [&asked] { return ++asked % 2 == 0; };
         for (int f = 0; f < 8; ++f) {
           const ProbeCollider p = probe_at(2.0 - 0.25 * f);
           ::ultrasim::testing::start_counting_allocations();
-          stitched.step(&p, 1.0 / 60);
+          if (f % 2 == 0) {
+            stitched.step(&p, 1.0 / 60);
+          } else {
+            stitched.step_within(&p, 1.0 / 60, budget);
+          }
           allocations += ::ultrasim::testing::stop_counting_allocations();
         }
         EXPECT_EQ(allocations, 0) << stitched.name() << (selective ? " selective" : " all")

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <string_view>
@@ -80,7 +81,9 @@ class StitchedVolume final : public DeformationEngine {
   // this frame, those pulled hardest by their seams first, in batches of one per job thread while
   // may_continue() says there is time (an empty function: no limit); may_continue is asked during
   // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
-  // every exchange (so give it 1/exchanges of the time left). Stats: the sum of the
+  // every exchange (so give it 1/exchanges of the time left). The PCG FEM's sub-volumes also
+  // stop their own CG when it says so (one iteration at least; it is asked from the job
+  // system's threads, one at a time). Stats: the sum of the
   // sub-volumes' iterations, contact nodes and contact forces' magnitudes, the most inverted
   // tets of one, diverged if any did, and the strongest recovery; cut_short when a due
   // sub-volume was left for later.
@@ -148,8 +151,9 @@ class StitchedVolume final : public DeformationEngine {
   bool within_reach(const SubVolume& sub, const ProbeCollider& probe) const;
   // One part of a frame for each of `subs`, anchors first; `first_part`: the frame's first
   // exchange (it keeps the positions the frame started from and starts the frame's stats).
+  // `budget` is each sub-volume's own (step_within; thread-safe: the batch steps in parallel).
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
-                  bool first_part);
+                  bool first_part, const StepBudget& budget);
   // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
   // shown positions (copies' mean) and displacements.
   void finish_frame();
@@ -174,6 +178,8 @@ class StitchedVolume final : public DeformationEngine {
   EngineKind method_;
   std::string name_;
   StitchingSettings settings_;
+  // The frame's budget is one clock: the sub-volumes stepping in parallel ask it in turn.
+  std::mutex budget_mutex_;
   hal::JobSystem* jobs_ = nullptr;
   std::vector<SubVolume> subs_;
   // Per grid node, its copies (CSR), and the seam spring's stiffness there (0 if not shared).
