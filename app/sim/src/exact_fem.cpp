@@ -43,11 +43,11 @@ struct ExactFem::BackgroundSolve {
   static void run(void* self) {
     auto& solve = *static_cast<BackgroundSolve*>(self);
     Columns columns = solve.factor->columns_at(solve.node, *solve.global_to_free);
-    {
-      std::lock_guard lock(solve.mutex);
-      solve.columns.swap(columns);
-      solve.state = State::kDone;
-    }
+    // Notified under the lock: the engine's destructor, woken by it, cannot free `done` before
+    // this thread has let go of the mutex, its last touch of the engine.
+    std::lock_guard lock(solve.mutex);
+    solve.columns.swap(columns);
+    solve.state = State::kDone;
     solve.done.notify_all();
   }
 };
