@@ -38,6 +38,19 @@ constexpr double kJoinHeldCopiesMm = 0.1;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
+// The fraction of inverted tets above which the method refuses a frame of one piece.
+double one_piece_inverted_fraction(EngineKind method, const EngineSettings& settings) {
+  switch (method) {
+    case EngineKind::kPcgFem:
+      return settings.fem.max_inverted_fraction;
+    case EngineKind::kMsdsExplicit:
+    case EngineKind::kMsdsImplicit:
+      return settings.msds.max_inverted_fraction;
+    default:
+      return 1.0;
+  }
+}
+
 }  // namespace
 
 bool stitchable(EngineKind method) {
@@ -79,6 +92,8 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
                                 std::to_string(engine_settings.msds.steps_per_frame) + ")");
   }
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
+  max_inverted_tets_ = static_cast<int>(one_piece_inverted_fraction(method, engine_settings) *
+                                        static_cast<double>(mesh_.tet_count()));
   build_copies(tet_materials);
   if (settings_.coarse_correction) {
     std::vector<SubVolumeBox> boxes;
@@ -181,6 +196,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
                                   "msds-explicit or msds-implicit");
     }
     sub.previous_positions_mm = mesh.rest_positions_mm;
+    sub.revert_mm = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh.node_count()));
     sub.positions_mm = sub.engine->deformed_positions_mm();
     const Eigen::Vector3i blocks =
         (sub.box.nodes.array() + kReachBlockNodes - 1) / kReachBlockNodes;
@@ -295,9 +311,15 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
                  part_dt_s, false, sub_budget);
     }
   }
-  join_held_copies();
-  correct_finely(may_continue);
-  update_coarse_residuals(std::span(schedule_).first(next));
+  const std::span<const int> stepped = std::span(schedule_).first(next);
+  const bool refused = refuses_frame(stepped);
+  if (refused) {
+    revert_frame(stepped);
+  } else {
+    join_held_copies();
+    correct_finely(may_continue);
+  }
+  update_coarse_residuals(stepped);
   EngineStepStats out;
   for (const auto& sub : subs_) {
     if (!sub.stepped) continue;
@@ -311,6 +333,13 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
     if (severity(s.recovery) > severity(out.recovery)) out.recovery = s.recovery;
   }
   out.cut_short = next < scheduled;
+  if (refused) {
+    // One piece's verdict on the press (the session then holds the probe where the tissue last
+    // took it), not a frame left unfinished.
+    out.diverged = true;
+    out.recovery = Recovery::kKeptLastGood;
+    out.cut_short = false;
+  }
   finish_frame();
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;
@@ -458,6 +487,34 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
   for (auto& sub : subs_) {
     if (sub.stepped) sub.positions_mm = sub.engine->deformed_positions_mm();
   }
+}
+
+bool StitchedVolume::refuses_frame(std::span<const int> stepped) const {
+  int inverted = 0;
+  for (int s : stepped) {
+    const EngineStepStats& stats = subs_[s].last_stats;
+    if (stats.recovery == Recovery::kReset || stats.recovery == Recovery::kKeptLastGood) {
+      return true;
+    }
+    inverted += stats.inverted_tets;
+  }
+  return inverted > max_inverted_tets_;
+}
+
+void StitchedVolume::revert_frame(std::span<const int> stepped) {
+  const auto revert = [&](int i) {
+    SubVolume& sub = subs_[stepped[i]];
+    const auto x = sub.engine->deformed_positions_mm();
+    const Eigen::VectorXd& u = sub.engine->displacements_mm();
+    for (std::size_t l = 0; l < x.size(); ++l) {
+      const auto dof = static_cast<Eigen::Index>(3 * l);
+      // rest = x − u
+      sub.revert_mm.segment<3>(dof) = sub.previous_positions_mm[l] - (x[l] - u.segment<3>(dof));
+    }
+    sub.engine->set_displacements_mm(sub.revert_mm);
+    sub.positions_mm = sub.engine->deformed_positions_mm();
+  };
+  hal::parallel_for(jobs_, static_cast<int>(stepped.size()), revert);
 }
 
 void StitchedVolume::join_held_copies() {

@@ -428,6 +428,34 @@ TEST(StitchedVolume, PcgSubVolumesIterateOnlyWhileTheFrameHasTime) {
   EXPECT_EQ(always.displacements_mm(), unlimited.displacements_mm());
 }
 
+// A press deeper than the tissue takes: a sub-volume that refuses its part (or is reset) refuses
+// the whole frame, and every sub-volume goes back to where the frame found it, so the seam never
+// tears and nothing blows up; the stitched frame says kept-last-good, the session's cue to hold
+// the probe.
+TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit, EngineSettings{},
+                          StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
+  int refused = 0;
+  Eigen::VectorXd before = stitched.displacements_mm();
+  for (int f = 0; f < 40; ++f) {
+    const ProbeCollider probe = sphere_probe(kSeamXmm - 5.0, 9.0, 0.5 * (f + 1), 6.0);
+    const EngineStepStats s = stitched.step(&probe, 1.0 / 60);
+    ASSERT_NE(s.recovery, Recovery::kReset) << "frame " << f;
+    ASSERT_TRUE(stitched.displacements_mm().allFinite());
+    if (s.recovery == Recovery::kKeptLastGood) {
+      ++refused;
+      EXPECT_TRUE(s.diverged);
+      EXPECT_FALSE(s.cut_short) << "a verdict on the press, not a frame left unfinished";
+      EXPECT_EQ(stitched.displacements_mm(), before) << "frame " << f;
+    }
+    EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 1.0) << "frame " << f;
+    before = stitched.displacements_mm();
+  }
+  EXPECT_GT(refused, 0) << "the press never went too deep: the test would mean nothing";
+}
+
 TEST(StitchedVolume, ShowsSharedNodesAtTheirCopiesMeanAndTakesALiveSwitch) {
   const Region r = make_region({26, 26, 5});
   hal::InlineJobSystem jobs;

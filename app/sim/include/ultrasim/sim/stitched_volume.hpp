@@ -113,6 +113,7 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<int> shared_local;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
+    Eigen::VectorXd revert_mm;  // 3 × local nodes: a refused frame's displacements, sized once
     // The engine's deformed positions (refreshed whenever it changes them).
     std::span<const Eigen::Vector3d> positions_mm;
     // Blocks of a few nodes per axis (per local node, its block) and each block's bounding box
@@ -165,6 +166,14 @@ class StitchedVolume final : public DeformationEngine {
   // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
   // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
   // reach test widens by the move.
+  // Whether the frame must be refused as a whole: a sub-volume refused its part or was reset, or
+  // the stepped sub-volumes together inverted more tets than one piece allows. Accepting the
+  // rest would leave that sub-volume at its frame's start, or at rest, against neighbours
+  // pressed on: the seam tears, its springs pull the copies apart harder each frame, and the
+  // explicit MSDS blew up (the soak with the large case: 13 resets in 60 s, a 2.2 m gap).
+  bool refuses_frame(std::span<const int> stepped) const;
+  // Every stepped sub-volume back to where the frame found it (at rest velocity).
+  void revert_frame(std::span<const int> stepped);
   // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
@@ -180,6 +189,7 @@ class StitchedVolume final : public DeformationEngine {
   StitchingSettings settings_;
   // The frame's budget is one clock: the sub-volumes stepping in parallel ask it in turn.
   std::mutex budget_mutex_;
+  int max_inverted_tets_ = 0;  // one piece's allowance over the whole region
   hal::JobSystem* jobs_ = nullptr;
   std::vector<SubVolume> subs_;
   // Per grid node, its copies (CSR), and the seam spring's stiffness there (0 if not shared).
