@@ -283,14 +283,12 @@ void ExactFem::adopt_background_solve() {
   total_columns_computed_ += 3;
 }
 
-void ExactFem::request_background_solve() {
+void ExactFem::request_background_solve(int node) {
   if (jobs_ == nullptr) return;
-  const auto deferred = std::find(deferred_.begin(), deferred_.end(), 1);
-  if (deferred == deferred_.end()) return;
   {
     std::lock_guard lock(background_->mutex);
     if (background_->state != BackgroundSolve::State::kIdle) return;
-    background_->node = static_cast<int>(deferred - deferred_.begin());
+    background_->node = node;
     background_->state = BackgroundSolve::State::kQueued;
   }
   if (!jobs_->post_background(&BackgroundSolve::run, background_.get())) {
@@ -577,8 +575,9 @@ EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame
   adopt_background_solve();
   last_good_u_ = u_;
   EngineStepStats out = solve_probe(probe);
-  out.cut_short = std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end();
-  if (out.cut_short) request_background_solve();
+  const auto first_deferred = std::find(deferred_.begin(), deferred_.end(), 1);
+  out.cut_short = first_deferred != deferred_.end();
+  if (out.cut_short) request_background_solve(static_cast<int>(first_deferred - deferred_.begin()));
   return out;
 }
 

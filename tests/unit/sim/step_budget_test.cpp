@@ -51,6 +51,21 @@ double max_abs(const Eigen::VectorXd& v) {
 
 const auto kAllSkin = [](const Eigen::Vector3d&) { return true; };
 
+// Green's functions precomputed for the skin at x < 0 only: a probe at x = 0 also presses nodes
+// whose columns would each take a solve with the factor.
+std::vector<std::uint8_t> half_skin(const Block& b) {
+  return skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
+}
+
+// The exact FEM (half the skin precomputed) under `probe` with no budget, stepped until its
+// active set stops moving.
+std::unique_ptr<ExactFem> settled_exact_fem(const Block& b, const ProbeCollider& probe) {
+  auto unlimited =
+      std::make_unique<ExactFem>(b.mesh, b.materials, b.fixed, ExactFemSettings{}, half_skin(b));
+  for (int frame = 0; frame < 30; ++frame) unlimited->step(&probe, 1.0 / 60);
+  return unlimited;
+}
+
 // Budgets for the tests: never more time, and one that counts how often it was asked.
 const StepBudget kNoTime = [] { return false; };
 
@@ -160,12 +175,10 @@ TEST(StepBudget, MsdsRetriesARejectedFrameWithSmallerStepsOnlyWhileThereIsTime) 
 
 TEST(StepBudget, ExactFemHoldsNoNodeWithoutGreensFunctionsAndComputesNoneUnderABudget) {
   const Block b = make_block();
-  // Green's functions precomputed for the skin at x < 0 only: the probe at x = 0 also presses
-  // nodes whose columns would each take a solve with the factor.
-  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
+  const auto skin = half_skin(b);
   const ProbeCollider probe = pressed(2.0);
-  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
-  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin);
+  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, skin);
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, skin);
 
   const long long precomputed = budgeted.total_columns_computed();  // at construction
   const EngineStepStats deferred = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
@@ -179,7 +192,7 @@ TEST(StepBudget, ExactFemHoldsNoNodeWithoutGreensFunctionsAndComputesNoneUnderAB
 
   // Once an unbudgeted frame has cached them, a budgeted frame holds them too: the same answer
   // as an unbudgeted frame from the same shape.
-  ExactFem cached(b.mesh, b.materials, b.fixed, {}, half_skin);
+  ExactFem cached(b.mesh, b.materials, b.fixed, {}, skin);
   cached.step(&probe, 1.0 / 60);
   const long long computed = cached.total_columns_computed();
   const EngineStepStats again = cached.step_within(&probe, 1.0 / 60, kNoTime);
@@ -221,13 +234,9 @@ class ManualBackground final : public hal::JobSystem {
 // background one at a time, and the frames converge to the unbudgeted answer; no frame solves.
 TEST(StepBudget, ExactFemGetsTheGreensFunctionsItDeferredFromTheBackground) {
   const Block b = make_block();
-  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
   const ProbeCollider probe = pressed(2.0);
-  // The answer: unbudgeted frames until the active set stops moving.
-  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
-  for (int frame = 0; frame < 30; ++frame) unlimited.step(&probe, 1.0 / 60);
   ManualBackground jobs;
-  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin, &jobs);
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin(b), &jobs);
   const long long precomputed = budgeted.total_columns_computed();
   int background_solves = 0;
   EngineStepStats last;
@@ -249,20 +258,18 @@ TEST(StepBudget, ExactFemGetsTheGreensFunctionsItDeferredFromTheBackground) {
   }
   EXPECT_GT(background_solves, 1);
   EXPECT_EQ(budgeted.total_columns_computed() - precomputed, 3 * background_solves);
-  EXPECT_EQ(last.contact_nodes, unlimited.last_solve_stats().contact_nodes);
-  EXPECT_LT(max_abs(budgeted.displacements_mm() - unlimited.displacements_mm()), 1e-9);
+  const auto unlimited = settled_exact_fem(b, probe);
+  EXPECT_EQ(last.contact_nodes, unlimited->last_solve_stats().contact_nodes);
+  EXPECT_LT(max_abs(budgeted.displacements_mm() - unlimited->displacements_mm()), 1e-9);
   std::printf("%d nodes solved in the background, one a frame\n", background_solves);
 }
 
 // The same with the kiosk's thread pool: its background thread solves while the test waits.
 TEST(StepBudget, ExactFemConvergesWithThePoolsBackgroundThread) {
   const Block b = make_block();
-  const auto half_skin = skin_where(b, [](const Eigen::Vector3d& p) { return p.x() < 0.0; });
   const ProbeCollider probe = pressed(2.0);
-  ExactFem unlimited(b.mesh, b.materials, b.fixed, {}, half_skin);
-  for (int frame = 0; frame < 30; ++frame) unlimited.step(&probe, 1.0 / 60);
   drivers::posix::ThreadPool jobs(2);
-  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin, &jobs);
+  ExactFem budgeted(b.mesh, b.materials, b.fixed, {}, half_skin(b), &jobs);
   EngineStepStats last;
   for (int frame = 0; frame < 200; ++frame) {
     last = budgeted.step_within(&probe, 1.0 / 60, kNoTime);
@@ -271,7 +278,8 @@ TEST(StepBudget, ExactFemConvergesWithThePoolsBackgroundThread) {
   }
   EXPECT_FALSE(last.cut_short);
   for (int frame = 0; frame < 30; ++frame) budgeted.step_within(&probe, 1.0 / 60, kNoTime);
-  EXPECT_LT(max_abs(budgeted.displacements_mm() - unlimited.displacements_mm()), 1e-9);
+  EXPECT_LT(max_abs(budgeted.displacements_mm() - settled_exact_fem(b, probe)->displacements_mm()),
+            1e-9);
 }
 
 }  // namespace

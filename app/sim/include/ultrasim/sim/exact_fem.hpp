@@ -151,7 +151,7 @@ class ExactFem final : public DeformationEngine {
   // Frame thread: a finished background solve's columns into the cache; a deferred node's solve
   // to the background when none is under way.
   void adopt_background_solve();
-  void request_background_solve();
+  void request_background_solve(int deferred_node);
   void refresh_load_response(ExactFemStepStats& stats);
   // Makes sure `node` has Green's functions available (precomputed or cached).
   void ensure_columns(int node, ExactFemStepStats& stats);
