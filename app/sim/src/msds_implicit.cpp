@@ -26,6 +26,14 @@ using msds_detail::kSpringsPerChunk;
 // force's derivative with respect to position is neglected (Baraff & Witkin). Held and pinned
 // nodes have v1 = 0 and drop out of the system. Jacobi-preconditioned CG, matrix-free: each node
 // gathers h C_s + h² K_s (p_i − p_j) over its springs.
+//
+// A step whose CG the budget stopped keeps the move it found but not its velocity. The velocity
+// is then the solve's unfinished answer, and carried on as the next step's momentum and warm
+// start it fed the error back: at a stitched seam's anchors (h² k ≫ m, the other side's copy a
+// step behind) the gap between two sub-volumes' copies grew several-fold a frame (the large case
+// under the kiosk's budget: seams 73 mm open, 394 of 571 frames refused, 3.5 kN at the probe).
+// From rest, a truncated step is a descent on the step's energy and cannot pump it; soft tissue
+// is overdamped, and the next steps' solves find the velocity again.
 
 void MsdsEngine::compute_spring_forces(double dt_s) {
   // Each spring once (its length and direction cost a square root and a division); the node
@@ -115,6 +123,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   double rz = sum_partials(partial_a_, chunks);
   double residual = std::sqrt(sum_partials(partial_b_, chunks));
   int iteration = 0;
+  bool truncated = false;
   // Relative to the right-hand side, with a floor: near a static state the right-hand side is
   // itself rounding, and asking for a fraction of it would spend the whole budget every step of a
   // still probe. r / h is a force; kCgForceFloorMn of it in all is far below anything shown.
@@ -123,6 +132,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     // Asked on the lead thread, between the team's stages.
     if (iteration > 0 && budget_ != nullptr && !(*budget_)()) {
       cut_short_ = true;
+      truncated = true;
       break;
     }
     for_each_chunk(chunks, [&](int chunk) {
@@ -160,7 +170,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     });
     ++iteration;
   }
-  StepResult result = finish_implicit_update(dt_s);
+  StepResult result = finish_implicit_update(dt_s, truncated);
   result.cg_iterations = iteration;
   result.cg_relative_residual = reference > 0.0 ? residual / reference : 0.0;
   return result;
@@ -191,7 +201,7 @@ Eigen::Vector3d MsdsEngine::system_row_times(int node, const std::vector<Eigen::
   return sum;
 }
 
-MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s) {
+MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s, bool truncated) {
   const int n = node_count();
   const int chunks = node_chunk_count();
   for_each_chunk(chunks, [&](int chunk) {
@@ -205,7 +215,7 @@ MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s) {
       const Eigen::Vector3d& v = cg_velocity_[i];
       const Eigen::Vector3d x = position_[i] + dt_s * v;  // backward Euler: the new velocity
       position_.set(i, x);
-      velocity_.set(i, v);
+      velocity_.set(i, truncated ? Eigen::Vector3d::Zero() : v);
       probe_clearance_mm_[i] -= dt_s * v.lpNorm<1>();  // see ExplicitNodeArrays
       min_clearance = std::min(min_clearance, probe_clearance_mm_[i]);
       kinetic += 0.5 * mass_kg_[i] * v.squaredNorm();

@@ -295,7 +295,8 @@ class MsdsEngine final : public DeformationEngine {
   Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p, double h) const;
   // The anchor's h² k on the node's diagonal (0 without one).
   double anchor_system_diagonal(int node, double h) const;
-  StepResult finish_implicit_update(double dt_s);
+  // x += h v1; v1 is kept as the velocity unless the budget truncated the CG (then zero).
+  StepResult finish_implicit_update(double dt_s, bool truncated);
   double contact_force_n() const;
   int held_node_count() const;
   void reset_to_rest();

@@ -81,12 +81,12 @@ class StitchedVolume final : public DeformationEngine {
   // this frame, those pulled hardest by their seams first, in batches of one per job thread while
   // may_continue() says there is time (an empty function: no limit); may_continue is asked during
   // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
-  // every exchange (so give it 1/exchanges of the time left). The PCG FEM's sub-volumes also
-  // stop their own CG when it says so (one iteration at least; it is asked from the job
-  // system's threads, one at a time). Stats: the sum of the
-  // sub-volumes' iterations, contact nodes and contact forces' magnitudes, the most inverted
-  // tets of one, diverged if any did, and the strongest recovery; cut_short when a due
-  // sub-volume was left for later.
+  // every exchange (so give it 1/exchanges of the time left). Each sub-volume's own step takes
+  // it too, as one piece's does (the CG methods stop iterating, one iteration at least; the
+  // explicit MSDS stops retrying): it is asked from the job system's threads, one at a time.
+  // Stats: the sum of the sub-volumes' iterations, contact nodes and contact forces' magnitudes,
+  // the most inverted tets of one, diverged if any did, and the strongest recovery; cut_short
+  // when a due sub-volume was left for later or a stepped one's own step was cut short.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
