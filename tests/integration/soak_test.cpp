@@ -21,6 +21,8 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <map>
+#include <regex>
 #include <string>
 
 #include "report_json.hpp"
@@ -68,6 +70,27 @@ TEST_F(ShortSoak, EndsByItselfHavingRunEveryFrameAndSwitchedMethodsAndCases) {
 
 TEST_F(ShortSoak, NoIntegratorBlewUp) {
   EXPECT_EQ(json_number(report_, "reset"), 0);
+}
+
+// The recovery log (report.json `recovery_events`) accounts for every frame the counts say a
+// method recovered from, kind by kind, with where and when each run of them started. (This
+// seed's session may have none to log: then the log must be empty too. How runs of frames
+// become events is recovery_events_test's.)
+TEST_F(ShortSoak, RecoveryEventsAccountForEveryRecoveredFrame) {
+  const std::size_t log = report_.find("\"recovery_events\":");
+  ASSERT_NE(log, std::string::npos);
+  ASSERT_EQ(json_number(report_, "dropped", log), 0);
+  std::map<std::string, double> frames;
+  const std::regex event(
+      "\"kind\": \"([a-z-]+)\", \"first_frame\": ([0-9]+), \"length_frames\": ([0-9]+), "
+      "\"time_s\": [-0-9.eE+]+, \"case\": \"[^\"]+\", \"method\": \"[a-z-]+\"");
+  for (auto it = std::sregex_iterator(report_.begin(), report_.end(), event);
+       it != std::sregex_iterator(); ++it) {
+    frames[(*it)[1]] += std::stod((*it)[3]);
+  }
+  EXPECT_EQ(frames["substepped"], json_number(report_, "substepped"));
+  EXPECT_EQ(frames["kept-last-good"], json_number(report_, "kept_last_good"));
+  EXPECT_EQ(frames["reset"], json_number(report_, "reset"));
 }
 
 TEST_F(ShortSoak, MemoryGrowthStaysWithinTheExactFemCacheBound) {

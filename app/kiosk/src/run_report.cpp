@@ -66,6 +66,18 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"cut_short_frames\": " << r.cut_short_frames << ", \"substepped\": " << r.recoveries[1]
       << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
       << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
+      << "  \"recovery_events\": {\"dropped\": " << r.recovery_events.dropped()
+      << ", \"events\": [";
+  const auto& events = r.recovery_events.events();
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const RecoveryEvent& e = events[i];
+    out << (i ? ",\n" : "\n") << "    {\"kind\": " << quoted(std::string(recovery_key(e.kind)))
+        << ", \"first_frame\": " << e.first_frame << ", \"length_frames\": " << e.frames
+        << ", \"time_s\": " << e.time_s << ", \"case\": " << quoted(e.case_name)
+        << ", \"method\": " << quoted(e.method)
+        << ", \"max_contact_force_n\": " << e.max_contact_force_n << "}";
+  }
+  out << (events.empty() ? "" : "\n  ") << "]},\n"
       << "  \"stitching\": {\"stitched_frames\": " << r.stitching.frames
       << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped
       << ", \"sub_volumes_deferred\": " << r.stitching.sub_volumes_deferred
