@@ -19,6 +19,8 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -91,6 +93,27 @@ TEST_F(ShortSoak, RecoveryEventsAccountForEveryRecoveredFrame) {
   EXPECT_EQ(frames["substepped"], json_number(report_, "substepped"));
   EXPECT_EQ(frames["kept-last-good"], json_number(report_, "kept_last_good"));
   EXPECT_EQ(frames["reset"], json_number(report_, "reset"));
+}
+
+// Once a second of frames (the last second partial), the strongest press over that second: the
+// run's strongest is one of them.
+TEST_F(ShortSoak, PerSecondSamplesCoverTheRunAndHoldItsStrongestPress) {
+  const std::size_t samples = report_.find("\"per_second\":");
+  ASSERT_NE(samples, std::string::npos);
+  const std::regex force("\"max_contact_force_n\": ([-0-9.eE+]+)");
+  int count = 0;
+  double strongest = 0.0;
+  for (auto it = std::sregex_iterator(report_.begin() + static_cast<std::ptrdiff_t>(samples),
+                                      report_.end(), force);
+       it != std::sregex_iterator(); ++it) {
+    ++count;
+    strongest = std::max(strongest, std::stod((*it)[1]));
+  }
+  const double frames = json_number(report_, "frames");
+  const double frames_per_second = std::floor(1e6 / kFrameBudgetUs);
+  EXPECT_EQ(count, static_cast<int>(std::ceil(frames / frames_per_second)));
+  EXPECT_GT(strongest, 0.0);
+  EXPECT_EQ(strongest, json_number(report_, "max_contact_force_n"));
 }
 
 TEST_F(ShortSoak, MemoryGrowthStaysWithinTheExactFemCacheBound) {

@@ -321,6 +321,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
   render::RgbaImage screen;
 
   const std::int64_t frames_per_second = std::max<std::int64_t>(1, 1'000'000 / budget_us);
+  RunReport::SecondSample second;  // the second's strongest press and widest seam so far
   if (options.script == "soak") {
     report.memory_baseline_frame =
         static_cast<std::int64_t>(soak_warm_up_s(tissues.size()) * 1e6) / budget_us;
@@ -443,6 +444,13 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     }
 
     report.frames += 1;
+    second.max_contact_force_n = std::max(second.max_contact_force_n, outcome.sim.contact_force_n);
+    if (outcome.stitch) second.max_gap_mm = std::max(second.max_gap_mm, outcome.stitch->max_gap_mm);
+    if (report.frames % frames_per_second == 0) {
+      second.frame = frame;
+      report.per_second.push_back(second);
+      second = {};
+    }
     report.poses_rejected += outcome.pose_rejected;
     report.frames_in_contact += outcome.in_contact;
     report.diverged_frames += outcome.sim.diverged;
@@ -490,6 +498,10 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       ++next_marker;
     }
     if (!real_time) script_clock.advance_us(budget_us);
+  }
+  if (report.frames % frames_per_second != 0) {  // the last, partial second
+    second.frame = report.frames - 1;
+    report.per_second.push_back(second);
   }
 
   report.controls.taps = touch.delivered();

@@ -147,7 +147,14 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   for (std::size_t i = 0; i < r.memory_kib.size(); ++i) {
     out << (i ? ", " : "") << "[" << r.memory_kib[i].first << ", " << r.memory_kib[i].second << "]";
   }
-  out << "]}\n}\n";
+  out << "]},\n  \"per_second\": [";
+  for (std::size_t i = 0; i < r.per_second.size(); ++i) {
+    const RunReport::SecondSample& s = r.per_second[i];
+    out << (i ? ", " : "") << "{\"frame\": " << s.frame
+        << ", \"max_contact_force_n\": " << s.max_contact_force_n
+        << ", \"max_gap_mm\": " << s.max_gap_mm << "}";
+  }
+  out << "]\n}\n";
 
   std::ofstream file(path);
   file << out.str();

@@ -110,6 +110,14 @@ struct RunReport {
   // first quarter, so that a cache filling or a case's buffers coming and going do not count
   // and a leak, growing all along, does; 0 with fewer than 4 samples.
   std::vector<std::pair<std::int64_t, std::int64_t>> memory_kib;
+  // Once a second of frames, the strongest press and the widest stitched seam over that second
+  // (its last frame): where a run's largest figures came from, and how they grew.
+  struct SecondSample {
+    std::int64_t frame = 0;
+    double max_contact_force_n = 0.0;
+    double max_gap_mm = 0.0;
+  };
+  std::vector<SecondSample> per_second;
   std::int64_t memory_baseline_frame = 0;
   std::int64_t memory_growth_kib() const;
 };
