@@ -338,10 +338,15 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
   out.cut_short = out.cut_short || next < scheduled;
   if (refused) {
     // One piece's verdict on the press (the session then holds the probe where the tissue last
-    // took it), not a frame left unfinished.
+    // took it), not a frame left unfinished, unless a sub-volume kept its last good shape only
+    // because the budget ran out before smaller steps were tried: as for one piece, no verdict,
+    // and the next frame tries again.
     out.diverged = true;
     out.recovery = Recovery::kKeptLastGood;
-    out.cut_short = false;
+    out.cut_short = std::ranges::any_of(stepped, [this](int s) {
+      const EngineStepStats& stats = subs_[s].last_stats;
+      return stats.recovery == Recovery::kKeptLastGood && stats.cut_short;
+    });
   }
   finish_frame();
   stats_.sub_volumes_touched = touched;
