@@ -545,8 +545,7 @@ void StitchedVolume::join_held_copies() {
     const Eigen::Vector3d mean = sum / held;
     for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
       SubVolume& sub = subs_[copies_[c].sub];
-      if (!sub.engine->holds_node(copies_[c].local)) continue;
-      sub.engine->move_held_node_mm(copies_[c].local, mean);
+      sub.engine->move_held_node_mm(copies_[c].local, mean);  // leaves a free copy where it is
       sub.positions_mm = sub.engine->deformed_positions_mm();
     }
   }

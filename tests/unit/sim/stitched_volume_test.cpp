@@ -13,6 +13,7 @@
 #include "slab_region.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
 #include "ultrasim/sim/sub_volume_split.hpp"
@@ -184,6 +185,31 @@ TEST(AnchorSprings, MsdsSettlesWhereSpringsAndAnchorsBalance) {
     const double lifted = -msds.displacements_mm()[3 * node + 2];
     EXPECT_GT(lifted, 0.1);
     EXPECT_LT(lifted, 1.0);
+  }
+}
+
+// What the stitching asks of the engines to put held seam copies in one place: a node the
+// probe holds moves there, a free node (the stitching passes every copy) stays.
+TEST(AnchorSprings, MoveHeldNodeMovesOnlyANodeTheProbeHolds) {
+  const Region r = make_region({9, 9, 5});
+  const ProbeCollider probe = sphere_probe(8.0, 8.0, 1.0, 4.0);
+  const int under = r.grid.node_index(4, 4, 0);  // under the probe's lowest point
+  const int aside = r.grid.node_index(0, 0, 0);  // on the skin, far from it
+  const Eigen::Vector3d there(8.1, 8.2, 1.05);
+  for (EngineKind kind :
+       {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+    auto engine = make_engine(kind, r.mesh, r.materials, r.fixed, EngineSettings{});
+    SCOPED_TRACE(engine->name());
+    engine->step(&probe, 1.0 / 60);
+    ASSERT_TRUE(engine->holds_node(under));
+    ASSERT_FALSE(engine->holds_node(aside));
+    const Eigen::Vector3d aside_before = engine->deformed_positions_mm()[aside];
+    engine->move_held_node_mm(under, there);
+    engine->move_held_node_mm(aside, there);
+    EXPECT_EQ(engine->deformed_positions_mm()[under], there);
+    EXPECT_EQ(engine->deformed_positions_mm()[aside], aside_before);
+    EXPECT_EQ(engine->displacements_mm().segment<3>(3 * under),
+              there - r.mesh.rest_positions_mm[under]);
   }
 }
 

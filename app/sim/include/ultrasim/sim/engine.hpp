@@ -126,8 +126,9 @@ class DeformationEngine {
     throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
   // Moves a node the probe holds (holds_node() and not fixed) to `position_mm` (finite), where
-  // the next step's contact test takes it up again: a stitched volume puts the copies of a seam
-  // node that the probe holds in several sub-volumes in one place. Does not allocate.
+  // the next step's contact test takes it up again; any other node is left where it is. A
+  // stitched volume puts the copies of a seam node that the probe holds in several sub-volumes
+  // in one place. Does not allocate.
   virtual void move_held_node_mm(int /*node*/, const Eigen::Vector3d& /*position_mm*/) {
     throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
