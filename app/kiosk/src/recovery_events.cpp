@@ -1,6 +1,7 @@
 #include "ultrasim/kiosk/recovery_events.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace ultrasim::kiosk {
 
@@ -22,6 +23,8 @@ void RecoveryEvents::record(std::int64_t frame, double time_s, std::string_view 
                             std::string_view method, sim::Recovery recovery,
                             double contact_force_n) {
   if (recovery == sim::Recovery::kNone) return;
+  // A frame that blew up may report no finite force; the report is JSON, which has no NaN.
+  if (!std::isfinite(contact_force_n)) contact_force_n = 0.0;
   const bool continues = frame == last_frame_ + 1 && recovery == last_kind_ &&
                          case_name == last_case_ && method == last_method_;
   last_frame_ = frame;

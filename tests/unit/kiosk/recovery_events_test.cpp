@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace ultrasim::kiosk {
 namespace {
 
@@ -36,10 +38,11 @@ TEST(RecoveryEvents, AnotherKindCaseOrMethodOrAGapStartsANewEvent) {
   log.record(3, 0.0, "arm", "msds-implicit", Recovery::kSubstepped, 1.0);    // another method
   log.record(4, 0.0, "spine", "msds-implicit", Recovery::kSubstepped, 1.0);  // another case
   log.record(6, 0.0, "spine", "msds-implicit", Recovery::kSubstepped, 1.0);  // frame 5 was fine
-  log.record(7, 0.0, "spine", "msds-implicit", Recovery::kReset, 1.0);
+  log.record(7, 0.0, "spine", "msds-implicit", Recovery::kReset, std::nan(""));
   ASSERT_EQ(log.events().size(), 6u);
   for (const RecoveryEvent& e : log.events()) EXPECT_EQ(e.frames, 1);
   EXPECT_EQ(log.events()[5].kind, Recovery::kReset);
+  EXPECT_EQ(log.events()[5].max_contact_force_n, 0.0) << "no NaN in the report's JSON";
   EXPECT_EQ(recovery_key(Recovery::kKeptLastGood), "kept-last-good");
   EXPECT_EQ(recovery_key(Recovery::kSubstepped), "substepped");
   EXPECT_EQ(recovery_key(Recovery::kReset), "reset");
