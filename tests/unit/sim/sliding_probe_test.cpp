@@ -1,0 +1,103 @@
+// A probe face slid along a homogeneous slab at a constant depth, far from the slab's edges: by
+// translation invariance the tissue's answer, and so the force on the probe, is the same wherever
+// the face stops, if the contact lets the skin slide under it (frictionless, as on gel). The exact
+// FEM's frictionless contact is held to that law. The published stick contact (PCG FEM, MSDS)
+// instead holds every node it catches in all three directions, so the face drags the skin along
+// and ploughs the tissue ahead: its figures are printed here (docs/benchmarks.md, the large case
+// in the soak), for the slip limit that is to bound them.
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "slab_region.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
+
+namespace ultrasim::sim {
+namespace {
+
+using testing::max_norm;
+
+constexpr double kDepthMm = 2.0;
+constexpr double kStartXmm = 20.0;
+constexpr double kSlideMm = 30.0;
+constexpr int kPressFrames = 20;
+constexpr int kSlideFrames = 120;
+constexpr int kSettleFrames = 40;
+
+// 70 × 26 × 14 mm at 2 mm, fixed at its floor.
+testing::SlabRegion homogeneous_slab() {
+  return testing::make_slab_region({36, 14, 8}, [](const Eigen::Vector3d&) {
+    return Material{1, "muscle", 30.0, 0.45};
+  });
+}
+
+ProbeCollider face_at(double x_mm, double depth_mm) {
+  // 12 mm across the slide, 6 mm along it, 2 mm edges, beam straight down.
+  return ProbeCollider::linear_face(
+      Eigen::Vector3d(x_mm, 13.0, depth_mm),
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * 3.141592653589793, Eigen::Vector3d::UnitZ())),
+      12.0, 6.0, 2.0);
+}
+
+struct SlideFigures {
+  double force_before_n = 0.0;  // pressed and settled at the start
+  double force_after_n = 0.0;   // slid and settled at the end
+  double largest_move_before_mm = 0.0;
+  double largest_move_after_mm = 0.0;
+};
+
+SlideFigures slide(EngineKind kind, const testing::SlabRegion& r) {
+  std::vector<std::uint8_t> skin(r.mesh.node_count(), 0);
+  for (int n = 0; n < r.mesh.node_count(); ++n) skin[n] = r.mesh.rest_positions_mm[n].z() == 0.0;
+  auto engine = make_engine(kind, r.mesh, r.materials, r.fixed, EngineSettings{}, skin);
+  SlideFigures out;
+  EngineStepStats s;
+  for (int f = 0; f < kPressFrames + kSettleFrames; ++f) {
+    const double depth = kDepthMm * std::min(1.0, (f + 1.0) / kPressFrames);
+    const ProbeCollider face = face_at(kStartXmm, depth);
+    s = engine->step(&face, 1.0 / 60);
+  }
+  out.force_before_n = s.contact_force_n;
+  out.largest_move_before_mm = max_norm(engine->displacements_mm());
+  for (int f = 0; f < kSlideFrames + kSettleFrames; ++f) {
+    const double x = kStartXmm + kSlideMm * std::min(1.0, (f + 1.0) / kSlideFrames);
+    const ProbeCollider face = face_at(x, kDepthMm);
+    s = engine->step(&face, 1.0 / 60);
+  }
+  out.force_after_n = s.contact_force_n;
+  out.largest_move_after_mm = max_norm(engine->displacements_mm());
+  std::printf("%-28s force %.2f -> %.2f N, largest move %.2f -> %.2f mm%s\n",
+              std::string(engine_key(kind)).c_str(), out.force_before_n, out.force_after_n,
+              out.largest_move_before_mm, out.largest_move_after_mm,
+              s.diverged ? " (the last frame refused)" : "");
+  return out;
+}
+
+TEST(SlidingProbe, TheFrictionlessExactFemPressesAsHardWhereverTheFaceStops) {
+  const testing::SlabRegion r = homogeneous_slab();
+  const SlideFigures exact = slide(EngineKind::kExactFem, r);
+  ASSERT_GT(exact.force_before_n, 0.1);
+  EXPECT_NEAR(exact.force_after_n, exact.force_before_n, 0.03 * exact.force_before_n);
+  EXPECT_NEAR(exact.largest_move_after_mm, exact.largest_move_before_mm,
+              0.03 * exact.largest_move_before_mm)
+      << "the skin slid under the face, not along with it";
+}
+
+// The known limitation, pinned with today's figures (2 mm deep, 30 mm slid: PCG FEM 0.42 ->
+// 1.31 N and the largest move 2.0 -> 6.5 mm; explicit and implicit MSDS 2.7 -> 5.2 / 5.0 N, 2.0
+// -> 3.7 / 3.8 mm). A slip limit on the stick contact is to bound these and replace this test by
+// the law above.
+TEST(SlidingProbe, TheStickContactPressesHarderTheFartherTheFaceSlides) {
+  const testing::SlabRegion r = homogeneous_slab();
+  for (EngineKind kind :
+       {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+    const SlideFigures stick = slide(kind, r);
+    EXPECT_GT(stick.force_after_n, 1.5 * stick.force_before_n) << engine_key(kind);
+    EXPECT_GT(stick.largest_move_after_mm, 1.5 * stick.largest_move_before_mm)
+        << engine_key(kind) << ": the skin went along with the face";
+  }
+}
+
+}  // namespace
+}  // namespace ultrasim::sim
