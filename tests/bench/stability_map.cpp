@@ -37,39 +37,6 @@ using namespace ultrasim;
 constexpr int kNodes[3] = {16, 8, 8};
 constexpr double kFrameDtS = 1.0 / 60.0;
 
-const char* recovery_name(sim::Recovery r) {
-  switch (r) {
-    case sim::Recovery::kNone:
-      return "none";
-    case sim::Recovery::kSubstepped:
-      return "substepped";
-    case sim::Recovery::kReset:
-      return "reset";
-    case sim::Recovery::kKeptLastGood:
-      return "kept-last-good";
-  }
-  return "?";
-}
-
-// The worse of two recoveries: a reset is worse than keeping the last shape, which is worse than
-// substepping.
-sim::Recovery worse(sim::Recovery a, sim::Recovery b) {
-  const auto rank = [](sim::Recovery r) {
-    switch (r) {
-      case sim::Recovery::kNone:
-        return 0;
-      case sim::Recovery::kSubstepped:
-        return 1;
-      case sim::Recovery::kKeptLastGood:
-        return 2;
-      case sim::Recovery::kReset:
-        return 3;
-    }
-    return 0;
-  };
-  return rank(a) >= rank(b) ? a : b;
-}
-
 // The block with every modulus scaled and every Poisson's ratio set.
 std::vector<sim::Material> materials(double modulus_scale, double poisson_ratio) {
   std::vector<sim::Material> m = bench::block(kNodes[0], kNodes[1], kNodes[2]).materials;
@@ -126,10 +93,10 @@ void sweep_time_step(std::ofstream& csv) {
           const auto probe = face_at_depth(0.2 * frame);
           const auto s = engine->step(&probe, kFrameDtS);
           diverged |= s.diverged;
-          recovery = worse(recovery, s.recovery);
+          recovery = sim::worse_recovery(recovery, s.recovery);
         }
         csv << sim::engine_key(kind) << ',' << dt_s << ',' << scale * 20.0 << ',' << scale * 50.0
-            << ',' << bound_s << ',' << diverged << ',' << recovery_name(recovery) << '\n';
+            << ',' << bound_s << ',' << diverged << ',' << sim::recovery_key(recovery) << '\n';
       }
     }
     std::printf("dt sweep: moduli x%g done\n", scale);
@@ -160,7 +127,7 @@ void sweep_poisson_ratio(std::ofstream& csv) {
       for (std::size_t i = 0; i < engines.size(); ++i) {
         last[i] = engines[i]->step(&probe, kFrameDtS);
         diverged[i] |= last[i].diverged;
-        recovery[i] = worse(recovery[i], last[i].recovery);
+        recovery[i] = sim::worse_recovery(recovery[i], last[i].recovery);
         if (frame == 20) {
           error_pressed[i] =
               relative_error(engines[i]->displacements_mm(), reference->displacements_mm());
@@ -171,7 +138,7 @@ void sweep_poisson_ratio(std::ofstream& csv) {
       const double error_held =
           relative_error(engines[i]->displacements_mm(), reference->displacements_mm());
       csv << sim::engine_key(kinds[i]) << ',' << nu << ',' << error_pressed[i] << ',' << error_held
-          << ',' << diverged[i] << ',' << recovery_name(recovery[i]) << ','
+          << ',' << diverged[i] << ',' << sim::recovery_key(recovery[i]) << ','
           << last[i].relative_residual << ',' << last[i].contact_force_n << '\n';
     }
     std::printf("nu sweep: %g done\n", nu);
@@ -194,7 +161,7 @@ void sweep_depth(std::ofstream& csv) {
       const bool finite = engine->displacements_mm().allFinite();
       csv << sim::engine_key(kind) << ',' << depth_mm << ','
           << static_cast<double>(s.inverted_tets) / tet_count() << ',' << s.diverged << ','
-          << recovery_name(s.recovery) << ',' << finite << ',' << s.contact_force_n << '\n';
+          << sim::recovery_key(s.recovery) << ',' << finite << ',' << s.contact_force_n << '\n';
     }
     std::printf("depth sweep: %s done\n", std::string(sim::engine_key(kind)).c_str());
   }

@@ -5,20 +5,6 @@
 
 namespace ultrasim::kiosk {
 
-std::string_view recovery_key(sim::Recovery recovery) {
-  switch (recovery) {
-    case sim::Recovery::kNone:
-      return "none";
-    case sim::Recovery::kSubstepped:
-      return "substepped";
-    case sim::Recovery::kReset:
-      return "reset";
-    case sim::Recovery::kKeptLastGood:
-      return "kept-last-good";
-  }
-  return "unknown";
-}
-
 void RecoveryEvents::record(std::int64_t frame, double time_s, std::string_view case_name,
                             std::string_view method, sim::Recovery recovery,
                             double contact_force_n) {

@@ -71,7 +71,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
   const auto& events = r.recovery_events.events();
   for (std::size_t i = 0; i < events.size(); ++i) {
     const RecoveryEvent& e = events[i];
-    out << (i ? ",\n" : "\n") << "    {\"kind\": " << quoted(std::string(recovery_key(e.kind)))
+    out << (i ? ",\n" : "\n") << "    {\"kind\": " << quoted(std::string(sim::recovery_key(e.kind)))
         << ", \"first_frame\": " << e.first_frame << ", \"length_frames\": " << e.frames
         << ", \"time_s\": " << e.time_s << ", \"case\": " << quoted(e.case_name)
         << ", \"method\": " << quoted(e.method)

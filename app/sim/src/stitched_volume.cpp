@@ -9,21 +9,6 @@ namespace ultrasim::sim {
 
 namespace {
 
-// How much a recovery says went wrong, for the stitched frame's one recovery.
-int severity(Recovery r) {
-  switch (r) {
-    case Recovery::kNone:
-      return 0;
-    case Recovery::kSubstepped:
-      return 1;
-    case Recovery::kKeptLastGood:
-      return 2;
-    case Recovery::kReset:
-      return 3;
-  }
-  return 0;
-}
-
 std::string sub_name(const SubVolumeBox& box) {
   return "sub-volume (" + std::to_string(box.index.x()) + ", " + std::to_string(box.index.y()) +
          ", " + std::to_string(box.index.z()) + ")";
@@ -332,7 +317,7 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
     out.inverted_tets = std::max(out.inverted_tets, s.inverted_tets);
     out.diverged = out.diverged || s.diverged;
     out.cut_short = out.cut_short || s.cut_short;
-    if (severity(s.recovery) > severity(out.recovery)) out.recovery = s.recovery;
+    out.recovery = worse_recovery(out.recovery, s.recovery);
   }
   // Deferred sub-volumes, or a stepped one's solve stopped by the budget.
   out.cut_short = out.cut_short || next < scheduled;
@@ -467,7 +452,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       f.contact_force_n = s.contact_force_n;
       f.inverted_tets = std::max(f.inverted_tets, s.inverted_tets);
       f.diverged = f.diverged || s.diverged;
-      if (severity(s.recovery) > severity(f.recovery)) f.recovery = s.recovery;
+      f.recovery = worse_recovery(f.recovery, s.recovery);
     }
     sub.positions_mm = sub.engine->deformed_positions_mm();
     sub.stepped = true;

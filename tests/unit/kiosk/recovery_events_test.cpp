@@ -43,9 +43,9 @@ TEST(RecoveryEvents, AnotherKindCaseOrMethodOrAGapStartsANewEvent) {
   for (const RecoveryEvent& e : log.events()) EXPECT_EQ(e.frames, 1);
   EXPECT_EQ(log.events()[5].kind, Recovery::kReset);
   EXPECT_EQ(log.events()[5].max_contact_force_n, 0.0) << "no NaN in the report's JSON";
-  EXPECT_EQ(recovery_key(Recovery::kKeptLastGood), "kept-last-good");
-  EXPECT_EQ(recovery_key(Recovery::kSubstepped), "substepped");
-  EXPECT_EQ(recovery_key(Recovery::kReset), "reset");
+  EXPECT_EQ(sim::recovery_key(Recovery::kKeptLastGood), "kept-last-good");
+  EXPECT_EQ(sim::recovery_key(Recovery::kSubstepped), "substepped");
+  EXPECT_EQ(sim::recovery_key(Recovery::kReset), "reset");
 }
 
 TEST(RecoveryEvents, PastTheCapEventsAreCountedNotKept) {

@@ -24,9 +24,6 @@ struct RecoveryEvent {
   double max_contact_force_n = 0.0;
 };
 
-// How a recovery is named in the report: "substepped", "reset", "kept-last-good".
-std::string_view recovery_key(sim::Recovery recovery);
-
 class RecoveryEvents {
  public:
   // Past this many events the rest are only counted: an hours-long soak refusing presses now and

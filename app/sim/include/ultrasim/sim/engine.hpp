@@ -22,6 +22,12 @@ enum class Recovery {
   kKeptLastGood,  // the frame's answer was rejected; the last good shape is shown again
 };
 
+// How a recovery is named in reports and tables: "none", "substepped", "reset", "kept-last-good".
+std::string_view recovery_key(Recovery recovery);
+// The worse of two recoveries: a reset is worse than keeping the last good shape, which is worse
+// than substepping, which is worse than none.
+Recovery worse_recovery(Recovery a, Recovery b);
+
 // What one frame's step did, for the stats overlay and the run report.
 struct EngineStepStats {
   int iterations = 0;              // PCG iterations, integration steps, or contact rounds
