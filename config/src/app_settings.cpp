@@ -72,6 +72,22 @@ TableSchema<imaging::BscanSettings> bscan_schema() {
   return t;
 }
 
+// The PCG FEM's and the MSDS's probe contact: the same keys in [fem] and [msds].
+template <typename S>
+void add_held_contact_fields(TableSchema<S>& t) {
+  using H = sim::HeldContactSettings;
+  t.add(field("contact", &S::contact, &H::model,
+              Choice<sim::HeldContactModel>{{{"coulomb-slip", sim::HeldContactModel::kCoulombSlip},
+                                             {"stick", sim::HeldContactModel::kStick}}},
+              "coulomb-slip = a held node slides along the probe where its tissue pulls it "
+              "harder than friction_coefficient x its push; stick = the published collider, "
+              "held in all three axes (a sliding probe drags the skin along)."));
+  t.add(field("friction_coefficient", &S::contact, &H::friction_coefficient,
+              RealIn::closed(0.0, 2.0),
+              "Coulomb friction of the probe on the skin (coulomb-slip); ~0.1 on gel, 0: "
+              "frictionless."));
+}
+
 TableSchema<sim::FemSettings> fem_schema() {
   using S = sim::FemSettings;
   TableSchema<S> t;
@@ -84,6 +100,7 @@ TableSchema<sim::FemSettings> fem_schema() {
   t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
               "Above this fraction of inverted tets a frame is rejected and the last good "
               "shape kept."));
+  add_held_contact_fields(t);
   return t;
 }
 
@@ -166,6 +183,7 @@ TableSchema<sim::MsdsSettings> msds_schema() {
   t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
               "More inverted tets than this fraction of all fail a step (substep, then keep the "
               "last good shape)."));
+  add_held_contact_fields(t);
   return t;
 }
 

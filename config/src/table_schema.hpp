@@ -70,6 +70,27 @@ Field<S> field(std::string key, Member S::*member, Codec codec, std::string doc,
   return f;
 }
 
+// Declares a field of a struct the table's struct holds (FemSettings::contact.model as the key
+// "contact" of [fem]): the same as field() on the inner struct.
+template <typename S, typename Inner, typename Member, typename Codec>
+Field<S> field(std::string key, Inner S::*outer, Member Inner::*member, Codec codec,
+               std::string doc, Presence presence = Presence::kOptional) {
+  Field<Inner> inner = field(std::move(key), member, std::move(codec), std::move(doc), presence);
+  Field<S> f;
+  f.key = std::move(inner.key);
+  f.doc = std::move(inner.doc);
+  f.allowed = std::move(inner.allowed);
+  f.presence = presence;
+  f.read = [outer, read = std::move(inner.read)](const toml::node& node, const ReadContext& ctx,
+                                                 const std::string& dotted_key, S& out) {
+    read(node, ctx, dotted_key, out.*outer);
+  };
+  f.write = [outer, write = std::move(inner.write)](const S& in, const WriteContext& ctx) {
+    return write(in.*outer, ctx);
+  };
+  return f;
+}
+
 // "prefix.key", or "key" at the top level.
 inline std::string dotted(std::string_view prefix, std::string_view key) {
   return prefix.empty() ? std::string(key) : std::string(prefix) + "." + std::string(key);

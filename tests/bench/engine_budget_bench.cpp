@@ -41,10 +41,12 @@ const bench::Block& scene() {
   return bench::block(32, 16, 16);
 }
 
-// engine_bench's exact FEM: stick contact, every node the probe touches held where it is put.
+// engine_bench's contact: the published stick, every node the probe touches held where it is put.
 sim::EngineSettings stick_contact_settings() {
   sim::EngineSettings settings;
   settings.exact.contact = sim::ContactModel::kStick;
+  settings.fem.contact.model = sim::HeldContactModel::kStick;
+  settings.msds.contact.model = sim::HeldContactModel::kStick;
   return settings;
 }
 

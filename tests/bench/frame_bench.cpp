@@ -34,6 +34,13 @@ struct Scene {
   }
 };
 
+sim::FemSettings pcg_settings(int iterations, double relative_tolerance) {
+  sim::FemSettings s;
+  s.pcg_iterations_per_frame = iterations;
+  s.relative_tolerance = relative_tolerance;
+  return s;
+}
+
 Scene& scene() {
   static Scene s;
   return s;
@@ -41,7 +48,7 @@ Scene& scene() {
 
 void BM_FemStep20Iterations(benchmark::State& state) {
   auto& s = scene();
-  sim::LinearFem fem(s.mesh, s.materials, s.fixed, sim::FemSettings{20, 1e-12});
+  sim::LinearFem fem(s.mesh, s.materials, s.fixed, pcg_settings(20, 1e-12));
   double depth = 0.0;
   for (auto _ : state) {
     depth = std::fmod(depth + 0.05, 6.0);
@@ -54,7 +61,7 @@ BENCHMARK(BM_FemStep20Iterations)->Unit(benchmark::kMillisecond);
 
 void slice(benchmark::State& state, bool deformed) {
   auto& s = scene();
-  sim::LinearFem fem(s.mesh, s.materials, s.fixed, sim::FemSettings{500, 1e-8});
+  sim::LinearFem fem(s.mesh, s.materials, s.fixed, pcg_settings(500, 1e-8));
   fem.step(sim::SphereCollider::behind_face({0, 0, 5}, {0, 0, 1}, 30));
   geometry::TetLocator locator(s.mesh);
   imaging::ProbeGeometry probe;

@@ -114,6 +114,8 @@ void sweep_poisson_ratio(std::ofstream& csv) {
     const auto m = materials(1.0, nu);
     sim::EngineSettings settings;
     settings.exact.contact = sim::ContactModel::kStick;
+    settings.fem.contact.model = sim::HeldContactModel::kStick;
+    settings.msds.contact.model = sim::HeldContactModel::kStick;
     const auto reference = make(sim::EngineKind::kExactFem, m, settings);
     std::vector<std::unique_ptr<sim::DeformationEngine>> engines;
     for (auto kind : kinds) engines.push_back(make(kind, m, settings));

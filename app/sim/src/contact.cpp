@@ -24,4 +24,20 @@ void find_contacts(const ProbeCollider& probe, std::span<const Eigen::Vector3d> 
   }
 }
 
+SurfacePoint slide_held_node(const ProbeCollider& probe, const SurfacePoint& held,
+                             const Eigen::Vector3d& tissue_force_mn,
+                             const Eigen::Matrix3d& stiffness, double friction_coefficient) {
+  const double push_mn = -tissue_force_mn.dot(held.normal);
+  if (!(push_mn > 0.0)) return held;  // pulled off the probe (or NaN): not ours to move
+  const Eigen::Vector3d along_mn = tissue_force_mn + push_mn * held.normal;
+  const double pull_mn = along_mn.norm();
+  const double excess_mn = pull_mn - friction_coefficient * push_mn;
+  if (!(excess_mn > 0.0)) return held;
+  const Eigen::Vector3d direction = along_mn / pull_mn;
+  const double stiffness_along = direction.dot(stiffness * direction);
+  if (!(stiffness_along > 0.0)) return held;
+  const double slide_mm = std::min(excess_mn / stiffness_along, kMaxSlidePerStepMm);
+  return probe.closest_surface_point(held.point_mm + slide_mm * direction);
+}
+
 }  // namespace ultrasim::sim

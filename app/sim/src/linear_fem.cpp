@@ -9,6 +9,7 @@
 
 #include "jacobi_cg.hpp"
 #include "model_checks.hpp"
+#include "ultrasim/sim/contact.hpp"
 
 namespace ultrasim::sim {
 
@@ -96,6 +97,7 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
   if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
     throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
+  check_held_contact_settings(settings.contact, "LinearFem");
   stiffness_ = assemble_stiffness(mesh, tet_materials);
   stiffness_diagonal_ = stiffness_.diagonal();
   inverse_diagonal_ = stiffness_diagonal_.cwiseInverse();
@@ -221,10 +223,34 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
       }
     }
   }
+  if (collider != nullptr && settings_.contact.model == HeldContactModel::kCoulombSlip) {
+    // In node order, each against its neighbours' new places (Gauss-Seidel).
+    for (int node = 0; node < n; ++node) {
+      if (in_contact_[node]) slide_along_probe(*collider, node);
+    }
+  }
   for (int node = 0; node < n; ++node) {
     const bool held = fixed_[node] || prescribed_[node] || in_contact_[node];
     free_mask_.segment<3>(3 * node).setConstant(held ? 0.0 : 1.0);
   }
+}
+
+void LinearFem::slide_along_probe(const ProbeCollider& collider, int node) {
+  // nodal_force_mn is what holds the node where it is: the tissue's force is its opposite.
+  const SurfacePoint slid = slide_held_node(
+      collider, {rest_[node] + u_.segment<3>(3 * node), contact_normal_[node]},
+      -nodal_force_mn(node), node_stiffness_block(node), settings_.contact.friction_coefficient);
+  u_.segment<3>(3 * node) = slid.point_mm - rest_[node];
+  contact_normal_[node] = slid.normal;
+}
+
+Eigen::Matrix3d LinearFem::node_stiffness_block(int node) const {
+  Eigen::Matrix3d k;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) k(i, j) = stiffness_.coeff(3 * node + i, 3 * node + j);
+  }
+  if (has_anchors_) k.diagonal() += anchor_stiffness_.segment<3>(3 * node);
+  return k;
 }
 
 FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,

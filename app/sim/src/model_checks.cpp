@@ -15,6 +15,13 @@ void check_material(const Material& m) {
   }
 }
 
+void check_held_contact_settings(const HeldContactSettings& s, std::string_view engine) {
+  if (!(s.friction_coefficient >= 0.0) || !std::isfinite(s.friction_coefficient)) {
+    throw std::invalid_argument(std::string(engine) +
+                                ": contact friction_coefficient must be finite and >= 0");
+  }
+}
+
 int check_tet_model(std::string_view engine, const geometry::TetMesh& mesh,
                     std::span<const Material> tet_materials,
                     std::span<const std::uint8_t> fixed_nodes) {

@@ -22,4 +22,8 @@ int check_tet_model(std::string_view engine, const geometry::TetMesh& mesh,
                     std::span<const Material> tet_materials,
                     std::span<const std::uint8_t> fixed_nodes);
 
+// Throws std::invalid_argument, prefixed with `engine`, unless the friction coefficient is finite
+// and ≥ 0.
+void check_held_contact_settings(const HeldContactSettings& s, std::string_view engine);
+
 }  // namespace ultrasim::sim

@@ -82,6 +82,7 @@ void check_settings(const MsdsSettings& s) {
           "max_inverted_fraction must be in [0, 1]");
   require(s.implicit_steps_per_frame >= 1 && s.implicit_steps_per_frame <= kMaxStepsPerFrame,
           "implicit_steps_per_frame must be in [1, " + std::to_string(kMaxStepsPerFrame) + "]");
+  check_held_contact_settings(s.contact, "MSDS");
 }
 
 }  // namespace
@@ -676,13 +677,46 @@ void MsdsEngine::apply_contacts(const ProbeCollider* probe, bool new_probe) {
     c.node = candidate_nodes_[c.node];
     position_.set(c.node, c.target_mm);
     velocity_.set(c.node, Eigen::Vector3d::Zero());
-    if (explicit_) {
-      explicit_->state[explicit_->current].set(c.node, c.target_mm, Eigen::Vector3d::Zero());
-    }
     held_[c.node] = 1;
     touching_only_[c.node] = c.depth_mm <= kTouchToleranceMm;
     contact_normal_[c.node] = c.normal;
   }
+  // Once every caught node is on the surface, so each slides against its neighbours' new places.
+  if (settings_.contact.model == HeldContactModel::kCoulombSlip) {
+    for (auto& c : contacts_) slide_along_probe(*probe, c);
+  }
+  if (explicit_) {
+    for (const auto& c : contacts_) {
+      explicit_->state[explicit_->current].set(c.node, c.target_mm, Eigen::Vector3d::Zero());
+    }
+  }
+}
+
+void MsdsEngine::slide_along_probe(const ProbeCollider& probe, NodeContact& c) {
+  Eigen::Vector3d elastic, damping;
+  gather_node_forces(c.node, elastic, damping);
+  const SurfacePoint slid =
+      slide_held_node(probe, {c.target_mm, c.normal}, elastic, node_stiffness_block(c.node),
+                      settings_.contact.friction_coefficient);
+  c.target_mm = slid.point_mm;
+  c.normal = slid.normal;
+  position_.set(c.node, c.target_mm);
+  contact_normal_[c.node] = c.normal;
+}
+
+Eigen::Matrix3d MsdsEngine::node_stiffness_block(int node) const {
+  // The springs' material stiffness along their present directions (their tension's sideways
+  // stiffness left out: it is small for springs near their rest length, and leaving it out
+  // only shortens a slide); the anchor's on the diagonal.
+  Eigen::Matrix3d k = Eigen::Matrix3d::Identity() * anchor_stiffness_mn_per_mm_[node];
+  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    const MsdsSpring& s = springs_[adjacency_spring_[e]];
+    double length = 0.0;
+    const Eigen::Vector3d dir =
+        spring_direction(node, adjacency_other_[e], s.rest_length_mm, length);
+    k.noalias() += s.stiffness_mn_per_mm * dir * dir.transpose();
+  }
+  return k;
 }
 
 // The probe's signed distance is a distance (1-Lipschitz): it changes no faster than a node

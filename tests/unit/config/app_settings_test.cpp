@@ -39,6 +39,10 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.bscan.background_grey, b.bscan.background_grey);
   EXPECT_EQ(a.fem.pcg_iterations_per_frame, b.fem.pcg_iterations_per_frame);
   EXPECT_EQ(a.fem.relative_tolerance, b.fem.relative_tolerance);
+  EXPECT_EQ(a.fem.contact.model, b.fem.contact.model);
+  EXPECT_EQ(a.fem.contact.friction_coefficient, b.fem.contact.friction_coefficient);
+  EXPECT_EQ(a.msds.contact.model, b.msds.contact.model);
+  EXPECT_EQ(a.msds.contact.friction_coefficient, b.msds.contact.friction_coefficient);
   EXPECT_EQ(a.corotational.pcg_iterations_per_frame, b.corotational.pcg_iterations_per_frame);
   EXPECT_EQ(a.corotational.relative_tolerance, b.corotational.relative_tolerance);
   EXPECT_EQ(a.corotational.max_inverted_fraction, b.corotational.max_inverted_fraction);
@@ -151,6 +155,9 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.coarse_correction = false;
   changed.stitching.sleep_force_mn = 0.25;
   changed.stitching.sleep_motion_mm = 2e-3;
+  changed.fem.contact.model = sim::HeldContactModel::kStick;
+  changed.fem.contact.friction_coefficient = 0.3;
+  changed.msds.contact.friction_coefficient = 0.0;
   changed.frame.budget_us = 33'333;
   changed.frame.simulation_budget_us = 7'000;
   changed.frame.bscan_budget_us = 2'500;
@@ -196,6 +203,9 @@ background_grey = 5
 [fem]
 pcg_iterations_per_frame = 40
 relative_tolerance = 1e-6
+[msds]
+contact = "stick"
+friction_coefficient = 0.2
 [corotational]
 max_inverted_fraction = 0.02
 [collider]
@@ -213,6 +223,8 @@ budget_us = 8333
   EXPECT_EQ(s.bscan.background_grey, 5);
   EXPECT_EQ(s.fem.pcg_iterations_per_frame, 40);
   EXPECT_EQ(s.fem.relative_tolerance, 1e-6);
+  EXPECT_EQ(s.msds.contact.model, sim::HeldContactModel::kStick);
+  EXPECT_EQ(s.msds.contact.friction_coefficient, 0.2);
   EXPECT_EQ(s.corotational.max_inverted_fraction, 0.02);
   EXPECT_EQ(s.collider.radius_mm, 500.0);  // closed upper bound
   EXPECT_EQ(s.frame.budget_us, 8333);

@@ -136,8 +136,10 @@ TEST(CoarseCorrection, AStitchedPcgFemUnderAStillProbeSettlesWhereOnePieceDoes) 
   hal::InlineJobSystem jobs;
   StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
   stitching.coarse_correction = true;
-  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, {}, stitching, &jobs);
-  LinearFem one_piece(r.mesh, r.materials, r.fixed, FemSettings{});
+  const EngineSettings engines = testing::stick_contact();
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engines, stitching,
+                          &jobs);
+  LinearFem one_piece(r.mesh, r.materials, r.fixed, engines.fem);
   const ProbeCollider probe =
       ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(17.0, 9.0, 2.0 - 8.0), 8.0});
   for (int f = 0; f < 300; ++f) {

@@ -199,7 +199,11 @@ TEST(CorotationalFem, SmallPressAgreesWithConvergedLinearFemAndTheGapShrinksWith
     double force = 0.0;         // |F_corot / F_linear − 1|
   };
   const auto gap_at = [&](double depth_mm) {
-    LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{2000, 1e-13});
+    FemSettings stick;  // as the corotational FEM holds its contacts
+    stick.pcg_iterations_per_frame = 2000;
+    stick.relative_tolerance = 1e-13;
+    stick.contact.model = HeldContactModel::kStick;
+    LinearFem linear(b.mesh, b.materials, b.fixed, stick);
     const auto linear_stats =
         linear.step(SphereCollider::behind_face({0, 0, depth_mm}, {0, 0, 1}, 15.0));
     linear.solve_to_tolerance(1e-13, 5000);

@@ -114,11 +114,14 @@ TEST(FineCorrection, StopsWhenTheFrameHasNoTimeLeft) {
 // Issue 5's target: a probe put down 3 mm deep where four sub-volumes meet and held still; ten
 // frames later the stitched PCG FEM (selective, seams exchanged once a frame) is within 2 % of
 // one piece (max norm, over the largest one-piece displacement) with the fine correction, and
-// far from it with the seams alone (measured: 0.09 % against 19 %).
+// far from it with the seams alone (measured: 0.09 % against 19 %). Under the published stick
+// contact (stick_contact() says why); under the default Coulomb slip the contact patch itself is
+// still sliding ten frames after a press (docs/accuracy.md).
 TEST(FineCorrection, AStitchedPcgFemTenFramesAfterAPlacedProbeIsWithinTwoPercentOfOnePiece) {
   const Region r = make_region({30, 30, 8});
   hal::InlineJobSystem jobs;
-  LinearFem one_piece(r.mesh, r.materials, r.fixed, FemSettings{});
+  const EngineSettings engines = testing::stick_contact();
+  LinearFem one_piece(r.mesh, r.materials, r.fixed, engines.fem);
   // Grid nodes 14 and 15 are both sub-volumes' copies on x and y: the probe's centre is there.
   const ProbeCollider probe =
       ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(29.0, 29.0, 3.0 - 8.0), 8.0});
@@ -129,7 +132,7 @@ TEST(FineCorrection, AStitchedPcgFemTenFramesAfterAPlacedProbeIsWithinTwoPercent
   for (const int iterations : {0, 20}) {
     StitchingSettings stitching{.sub_volumes = {2, 2, 1}};
     stitching.fine_correction_iterations = iterations;
-    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, {}, stitching,
+    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engines, stitching,
                             &jobs);
     int first_frame_iterations = 0;
     for (int f = 0; f < 10; ++f) {

@@ -153,9 +153,16 @@ TEST(MsdsReference, PublishedStepWithScaledMassesMatchesTheNaiveStep) {
                            random_displacements(b.mesh.node_count(), 0.3), true);
 }
 
+// The reference holds the published stick contact; the Coulomb slip has its own tests
+// (held_contact_slip_test.cpp, sliding_probe_test.cpp).
+MsdsSettings with_stick_contact(MsdsSettings s) {
+  s.contact.model = HeldContactModel::kStick;
+  return s;
+}
+
 TEST(MsdsReference, PressedByAProbeMatchesTheNaiveStepWithItsContacts) {
   const Block b = make_block();
-  const MsdsSettings s = physical_masses();
+  const MsdsSettings s = with_stick_contact(physical_masses());
   const double dt = half_the_stable_step(b, s);
   // The published sphere, its lowest point 1.5 mm below the skin (z = 0).
   const ProbeCollider probe = ProbeCollider::sphere(
@@ -165,7 +172,7 @@ TEST(MsdsReference, PressedByAProbeMatchesTheNaiveStepWithItsContacts) {
 
 TEST(MsdsReference, ScaledMassesUnderALinearProbeMatchTheNaiveStepWithItsContacts) {
   const Block b = make_block({13, 7, 7});
-  const MsdsSettings s;
+  const MsdsSettings s = with_stick_contact(MsdsSettings{});
   const ProbeCollider probe =
       ProbeCollider::linear_face({1.0, 0.5, 1.0}, Eigen::Quaterniond::Identity(), 20.0, 8.0, 2.0);
   expect_matches_reference(b, s, s.time_step_s, 40, &probe,

@@ -484,20 +484,25 @@ TEST(MsdsPress, ImplicitPressSettlesToAStaticStateShapedLikeTheQuasiStaticFem) {
   const Block b = make_block(30.0, {9, 5, 9});
   const double depth = 3.0, radius = 15.0;
   const ProbeCollider probe = press(depth, radius);
-  // Implicit Euler is stable at any step: a few long steps per frame settle quickly.
-  MsdsEngine engine = make_engine(b, kImplicit, with_step(0.025, 4));
+  // Implicit Euler is stable at any step: a few long steps per frame settle quickly. Without
+  // friction, so the linear FEM below holds the same contact law; the held nodes' slide along the
+  // sphere settles over tens of frames (kinetic energy down ×8 every 20).
+  MsdsSettings frictionless = with_step(0.025, 4);
+  frictionless.contact.friction_coefficient = 0.0;
+  MsdsEngine engine = make_engine(b, kImplicit, frictionless);
   EngineStepStats stats;
-  for (int frame = 0; frame < 40; ++frame) {
+  for (int frame = 0; frame < 140; ++frame) {
     stats = engine.step(&probe, 1.0 / 30);
     ASSERT_FALSE(stats.diverged) << "frame " << frame;
   }
   ASSERT_GT(stats.contact_nodes, 0);
   EXPECT_GT(stats.contact_force_n, 0.0);
   const Eigen::VectorXd& u = engine.displacements_mm();
-  // The node under the probe's lowest point is pressed in by the press depth.
+  // The node under the probe's lowest point is pressed in by the press depth (to a micrometre: it
+  // slides a little along the sphere, the lattice not being symmetric about its axis).
   const int top = node_at(b, {0, 0, 0});
   ASSERT_GE(top, 0);
-  EXPECT_NEAR(u[3 * top + 2], depth, 1e-9);
+  EXPECT_NEAR(u[3 * top + 2], depth, 1e-3);
   // Below it, the push decays with depth.
   double above = u[3 * top + 2];
   for (double z : {5.0, 10.0, 15.0}) {
@@ -522,9 +527,13 @@ TEST(MsdsPress, ImplicitPressSettlesToAStaticStateShapedLikeTheQuasiStaticFem) {
   EXPECT_LT(engine.kinetic_energy_uj(), 1e-12 * engine.elastic_energy_uj());
 
   // A different model from linear FEM, but the same press must move the tissue the same way.
-  LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{});
-  fem.step(SphereCollider::behind_face({0, 0, depth}, Eigen::Vector3d::UnitZ(), radius));
-  fem.solve_to_tolerance(1e-10, 5000);
+  FemSettings frictionless_fem;
+  frictionless_fem.contact.friction_coefficient = 0.0;
+  LinearFem fem(b.mesh, b.materials, b.fixed, frictionless_fem);
+  for (int frame = 0; frame < 100; ++frame) {  // its slip settles a step a frame
+    fem.step(SphereCollider::behind_face({0, 0, depth}, Eigen::Vector3d::UnitZ(), radius));
+    fem.solve_to_tolerance(1e-10, 5000);
+  }
   Eigen::VectorXd u_fem(u.size());
   for (int n = 0; n < b.mesh.node_count(); ++n) u_fem.segment<3>(3 * n) = fem.displacement_mm(n);
   // The springs' lattice is less incompressible than ν = 0.45, so the sideways bulge differs
@@ -553,8 +562,25 @@ TEST(MsdsPress, AProbeJumpThatFoldsTetsForOneStepIsNotADivergence) {
   ASSERT_GT(probe_only.inverted_tet_count(), 0) << "the test needs a fold after the first step";
   const auto stats = engine.step(&probe, 1.0 / 30);
   EXPECT_FALSE(stats.diverged);
-  EXPECT_EQ(stats.inverted_tets, 0);
+  // Held in all three axes (the published stick), the springs unfold them within the frame.
+  // Held by Coulomb's law, the skin nodes also slide outwards along the sphere as they unfold,
+  // both layers caught on it: the step's count is clear from the next frame on, and the last
+  // tet squeezed flat between them (its volume's sign decided by rounding: the vectorised count
+  // calls it positive, the plain one zero) opens by the eleventh.
+  int frames = 1;
+  for (; frames < 12 && engine.inverted_tet_count() > 0; ++frames) {
+    const auto next = engine.step(&probe, 1.0 / 30);
+    EXPECT_FALSE(next.diverged);
+    EXPECT_EQ(next.inverted_tets, 0);
+  }
   EXPECT_EQ(engine.inverted_tet_count(), 0);
+  MsdsSettings stick_settings = physical_masses();
+  stick_settings.contact.model = HeldContactModel::kStick;
+  MsdsEngine stick = make_engine(b, kImplicit, stick_settings);
+  const auto stick_stats = stick.step(&probe, 1.0 / 30);
+  EXPECT_FALSE(stick_stats.diverged);
+  EXPECT_EQ(stick_stats.inverted_tets, 0);
+  EXPECT_EQ(stick.inverted_tet_count(), 0);
 }
 
 TEST(MsdsPress, LiftingTheProbeLetsTheTissueRelaxBackToRest) {

@@ -26,4 +26,23 @@ void find_contacts(const ProbeCollider& probe, std::span<const Eigen::Vector3d> 
                    std::span<const std::uint8_t> fixed_nodes, double tolerance_mm,
                    std::vector<NodeContact>& out);
 
+// Coulomb's law for a node the probe holds on its surface at `held` (HeldContactModel::
+// kCoulombSlip). `tissue_force_mn` is the tissue's elastic force on the node there and
+// `stiffness` the node's own 3 × 3 block of the tissue's stiffness (how that force changes as the
+// node alone moves, mN/mm). The node sticks (`held` comes back) while the tissue pushes it against
+// the probe and pulls it along the surface no harder than `friction_coefficient` × that push, or
+// when it pulls it off the probe (letting go is the caller's rule). Otherwise it slides along the
+// surface the way it is pulled, as far as brings the pull down to the bound to first order (at
+// most kMaxSlidePerStepMm), and comes back on the surface there. Called on each held node in turn
+// after a step's contacts are placed, each with its neighbours where the earlier calls put them,
+// it relaxes the contact patch towards Coulomb's equilibrium step by step (Gauss-Seidel), as the
+// probe slides.
+SurfacePoint slide_held_node(const ProbeCollider& probe, const SurfacePoint& held,
+                             const Eigen::Vector3d& tissue_force_mn,
+                             const Eigen::Matrix3d& stiffness, double friction_coefficient);
+
+// The first-order slide is exact on a flat face; on the rounded rim the surface turns away within
+// the edge radius, so one step moves a node no farther than this and the next step goes on.
+inline constexpr double kMaxSlidePerStepMm = 1.0;
+
 }  // namespace ultrasim::sim

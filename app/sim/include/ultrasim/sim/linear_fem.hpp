@@ -105,6 +105,10 @@ class LinearFem final : public DeformationEngine {
  private:
   FemStepStats step_probe(const ProbeCollider* probe, const StepBudget& may_continue);
   void apply_collider(const ProbeCollider* collider);
+  // HeldContactModel::kCoulombSlip: a held node slides along the probe (slide_held_node).
+  void slide_along_probe(const ProbeCollider& collider, int node);
+  // The node's own 3 × 3 block of K + A, mN/mm.
+  Eigen::Matrix3d node_stiffness_block(int node) const;
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();

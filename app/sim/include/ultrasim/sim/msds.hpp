@@ -276,6 +276,10 @@ class MsdsEngine final : public DeformationEngine {
   // Each node block's least clearance (block_min_clearance_mm_), from the nodes'.
   void update_block_min_clearances();
   void release_if_pulled_away(int node, const Eigen::Vector3d& force_mn);
+  // HeldContactModel::kCoulombSlip: a held node slides along the probe (slide_held_node).
+  void slide_along_probe(const ProbeCollider& probe, NodeContact& contact);
+  // The node's own block of the springs' (and its anchor's) stiffness, mN/mm.
+  Eigen::Matrix3d node_stiffness_block(int node) const;
   // Every spring's elastic and damping force at the current state and its implicit block.
   void compute_spring_forces(double dt_s);
   // A node's share of those: Σ ± over its springs, in adjacency order.

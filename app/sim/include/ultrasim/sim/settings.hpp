@@ -28,6 +28,27 @@ enum class MaterialMixing {
   kReuss,
 };
 
+// How the PCG FEM's and the MSDS's probe holds a node it catches (the exact FEM has its own
+// ContactModel).
+enum class HeldContactModel {
+  // The published collider: a caught node is held at its push-out point in all three axes for the
+  // step. A probe sliding along the skin drags the skin along and ploughs the tissue ahead of it
+  // (docs/accuracy.md, "A sliding probe").
+  kStick,
+  // Coulomb friction: a held node whose tissue pulls it along the probe's surface harder than
+  // friction_coefficient × its push slides along the surface, each step, to where the pull is
+  // down to that bound (its neighbours as they are); the rest stick. 0: frictionless, as the
+  // exact FEM's contact.
+  kCoulombSlip,
+};
+
+struct HeldContactSettings {
+  HeldContactModel model = HeldContactModel::kCoulombSlip;
+  // Skin on a gel-lubricated probe face: of the order of 0.1 (wet and lubricated skin measure
+  // 0.02-0.2; dry skin 0.4-0.8).
+  double friction_coefficient = 0.1;
+};
+
 // Quasi-static linear FEM solved by preconditioned conjugate gradients.
 struct FemSettings {
   // PCG iterations per frame, warm-started from the previous frame's displacement. The published
@@ -39,6 +60,7 @@ struct FemSettings {
   // is useless; a probe pushed through the tissue inverts many. Above this fraction of all tets
   // the frame is rejected and the last good shape kept.
   double max_inverted_fraction = 0.005;
+  HeldContactSettings contact;
 };
 
 // The published mass-spring-damper system (MSDS): every tet edge a spring, duplicates merged by
@@ -64,6 +86,7 @@ struct MsdsSettings {
   int implicit_steps_per_frame = 2;
   // As FemSettings::max_inverted_fraction: more inverted tets than this fraction fail a step.
   double max_inverted_fraction = 0.005;
+  HeldContactSettings contact;
 };
 
 // Corotational linear FEM: per-tet rotation extracted by polar decomposition each frame, the
