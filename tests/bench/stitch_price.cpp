@@ -55,6 +55,7 @@ constexpr double kCornerMm = 61.0;
 
 using bench::max_norm;
 using bench::Region;
+using bench::stick_contact;
 
 sim::ProbeCollider placed_probe() {
   return bench::sphere_probe(kCornerMm, kCornerMm, 4.0);
@@ -106,7 +107,8 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
     const auto probe_for = [&](int f) { return placed ? placed_probe() : probe_at(f); };
     const char* scenario = placed ? "placed" : "pressed";
     for (auto method : kMethods) {
-      auto one_piece = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+      auto one_piece =
+          sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
       std::vector<Eigen::VectorXd> reference;
       for (int f = 0; f < total; ++f) {
         const auto probe = probe_for(f);
@@ -122,7 +124,8 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
         stitching.exchanges_per_frame = v.exchanges_per_frame;
         stitching.coarse_correction = v.coarse_correction;
         stitching.fine_correction_iterations = v.fine_correction_iterations;
-        sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
+        sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, stick_contact(),
+                                     stitching, &jobs);
         double error_at_10 = 0.0;
         for (int f = 0; f < total; ++f) {
           const auto probe = probe_for(f);
@@ -159,7 +162,8 @@ void path_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
   };
   constexpr Path kPaths[] = {{"offset-0.01mm", 0.01, 1}, {"lowered-over-4-frames", 0.0, 4}};
   for (auto method : kMethods) {
-    auto reference = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+    auto reference =
+        sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
     std::vector<Eigen::VectorXd> placed;
     for (int f = 0; f < kPlacedFrames; ++f) {
       const auto probe = placed_probe();
@@ -167,7 +171,8 @@ void path_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
       placed.push_back(reference->displacements_mm());
     }
     for (const Path& p : kPaths) {
-      auto other = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+      auto other =
+          sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
       for (int f = 0; f < kPlacedFrames + p.lowering_frames - 1; ++f) {
         const double depth = 4.0 * std::min(1.0, (f + 1.0) / p.lowering_frames);
         const auto probe = bench::sphere_probe(kCornerMm + p.offset_mm, kCornerMm, depth);
@@ -189,14 +194,16 @@ void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) 
   out << "method,stiffness_per_modulus_mm,error,gap_mm\n";
   const auto probe = placed_probe();
   for (auto method : kMethods) {
-    auto one_piece = sim::make_engine(method, r.mesh, r.materials, r.fixed, {}, {}, &jobs);
+    auto one_piece =
+        sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
     for (int f = 0; f < kPlacedFrames; ++f) one_piece->step(&probe, kFrameDtS);
     for (double k : {1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0}) {
       sim::StitchingSettings stitching;
       stitching.sub_volumes = {5, 5, 1};
       stitching.selective = false;
       stitching.spring_stiffness_per_modulus_mm = k;
-      sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, {}, stitching, &jobs);
+      sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, stick_contact(), stitching,
+                                   &jobs);
       for (int f = 0; f < kPlacedFrames; ++f) stitched.step(&probe, kFrameDtS);
       const double error = max_norm(stitched.displacements_mm() - one_piece->displacements_mm()) /
                            max_norm(one_piece->displacements_mm());

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
 
@@ -25,6 +26,17 @@ struct Region {
 };
 
 // side × side × depth nodes; the fat is the top 8 mm. Allocates.
+// The price of stitching is measured under the published stick contact: a still probe's answer
+// then depends only on which nodes it caught. Under Coulomb friction (the kiosk's default) any
+// state inside the friction cone is at rest and one piece and the stitched region reach different
+// ones (docs/accuracy.md, "The price of stitching").
+inline sim::EngineSettings stick_contact() {
+  sim::EngineSettings s;
+  s.fem.contact.model = sim::HeldContactModel::kStick;
+  s.msds.contact.model = sim::HeldContactModel::kStick;
+  return s;
+}
+
 inline Region make_region(int side, int depth) {
   Region r;
   r.grid.nodes = {side, side, depth};
