@@ -84,8 +84,9 @@ void add_held_contact_fields(TableSchema<S>& t) {
               "held in all three axes (a sliding probe drags the skin along)."));
   t.add(field("friction_coefficient", &S::contact, &H::friction_coefficient,
               RealIn::closed(0.0, 2.0),
-              "Coulomb friction of the probe on the skin (coulomb-slip); ~0.1 on gel, 0: "
-              "frictionless."));
+              "Coulomb friction of the probe on the skin (coulomb-slip); 0: frictionless, as "
+              "the exact FEM; gel-lubricated skin 0.02-0.2, but a face pressed deeper than its "
+              "rounded edge then bulldozes the skin ahead of it."));
 }
 
 TableSchema<sim::FemSettings> fem_schema() {

@@ -27,9 +27,9 @@ struct Region {
 
 // side × side × depth nodes; the fat is the top 8 mm. Allocates.
 // The price of stitching is measured under the published stick contact: a still probe's answer
-// then depends only on which nodes it caught. Under Coulomb friction (the kiosk's default) any
-// state inside the friction cone is at rest and one piece and the stitched region reach different
-// ones (docs/accuracy.md, "The price of stitching").
+// then depends only on which nodes it caught. Under the kiosk's default frictionless slip the held
+// nodes slide towards the answer over tens of frames; with friction one piece and the stitched
+// region come to rest in different states (docs/accuracy.md, "The price of stitching").
 inline sim::EngineSettings stick_contact() {
   sim::EngineSettings s;
   s.fem.contact.model = sim::HeldContactModel::kStick;

@@ -118,6 +118,34 @@ std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh) {
   return result;
 }
 
+std::vector<std::uint8_t> boundary_node_flags(const TetMesh& mesh) {
+  // Every tet's faces as sorted node triples, sorted: a face met once is on the boundary.
+  std::vector<std::array<std::int32_t, 3>> faces;
+  faces.reserve(4 * mesh.tets.size());
+  for (const Tet& tet : mesh.tets) {
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<std::int32_t, 3> face{};
+      int k = 0;
+      for (int i = 0; i < 4; ++i) {
+        if (i != skip) face[k++] = tet[i];
+      }
+      std::sort(face.begin(), face.end());
+      faces.push_back(face);
+    }
+  }
+  std::sort(faces.begin(), faces.end());
+  std::vector<std::uint8_t> on_boundary(mesh.rest_positions_mm.size(), 0);
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j] == faces[i]) ++j;
+    if (j - i == 1) {
+      for (std::int32_t node : faces[i]) on_boundary[node] = 1;
+    }
+    i = j;
+  }
+  return on_boundary;
+}
+
 std::vector<std::array<std::int32_t, 2>> unique_edges(
     const std::vector<std::array<std::int32_t, 3>>& triangles) {
   std::vector<std::array<std::int32_t, 2>> edges;

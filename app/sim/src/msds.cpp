@@ -168,6 +168,7 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
   check_tet_model("MsdsEngine", mesh, tet_materials, fixed_nodes);
   rest_ = mesh.rest_positions_mm;
   tets_ = mesh.tets;
+  on_surface_ = geometry::boundary_node_flags(mesh);
   build_springs(mesh, tet_materials);
   build_masses(mesh);
   // A node in no tet has no mass and no spring: nothing could move it, so it never moves.
@@ -682,8 +683,14 @@ void MsdsEngine::apply_contacts(const ProbeCollider* probe, bool new_probe) {
     contact_normal_[c.node] = c.normal;
   }
   // Once every caught node is on the surface, so each slides against its neighbours' new places.
+  // Only a node on the tissue's surface slides: one inside it, caught while the springs lag
+  // behind a deep press, slid past the surface node over it and folded the tets between, which
+  // the springs (no volume stiffness) never unfold (a 4 mm press slid along a slab of 2 mm tets:
+  // 128 at once); held where caught, it is let go as the springs push it off the probe.
   if (settings_.contact.model == HeldContactModel::kCoulombSlip) {
-    for (auto& c : contacts_) slide_along_probe(*probe, c);
+    for (auto& c : contacts_) {
+      if (on_surface_[c.node]) slide_along_probe(*probe, c);
+    }
   }
   if (explicit_) {
     for (const auto& c : contacts_) {

@@ -157,7 +157,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.sleep_motion_mm = 2e-3;
   changed.fem.contact.model = sim::HeldContactModel::kStick;
   changed.fem.contact.friction_coefficient = 0.3;
-  changed.msds.contact.friction_coefficient = 0.0;
+  changed.msds.contact.friction_coefficient = 0.15;
   changed.frame.budget_us = 33'333;
   changed.frame.simulation_budget_us = 7'000;
   changed.frame.bscan_budget_us = 2'500;

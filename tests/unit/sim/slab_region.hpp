@@ -53,11 +53,12 @@ inline double max_norm(const Eigen::VectorXd& u_mm) {
 
 // The published stick contact for the PCG FEM and the MSDS. The price of stitching against one
 // piece under a still probe is measured with it: the answer then depends only on which nodes the
-// probe caught, and the same frames catch the same nodes stitched and in one piece. Under
-// Coulomb friction (the default) any state whose held nodes' pull stays inside the friction cone
-// is at rest, and the two reach different ones by their different paths (7.5 % of the peak apart
-// with μ 0.1 in StitchedVolume.PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses's press;
-// frictionless, the same one: StitchedVolume.FrictionlessSlipSettlesWhereOnePieceDoes).
+// probe caught, and the same frames catch the same nodes stitched and in one piece. Under the
+// default frictionless slip the answer is unique but the held nodes slide towards it a step at a
+// time, tens of frames (StitchedVolume.FrictionlessSlipSettlesWhereOnePieceDoes); with friction
+// any state whose held nodes' pull stays inside the friction cone is at rest, and the two reach
+// different ones by their different paths (7.5 % of the peak apart with μ 0.1 in
+// StitchedVolume.PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses's press).
 inline EngineSettings stick_contact() {
   EngineSettings s;
   s.fem.contact.model = HeldContactModel::kStick;

@@ -53,6 +53,9 @@ int count_inverted_tets(std::span<const std::array<std::int32_t, 4>> tets,
 // Triangles on the mesh boundary (faces used by exactly one tet), outward-facing. Allocates.
 std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh);
 
+// One flag per node: 1 for a node of a boundary face (the mesh's surface), 0 inside. Allocates.
+std::vector<std::uint8_t> boundary_node_flags(const TetMesh& mesh);
+
 // Unique undirected edges of the given triangles, as index pairs (lower index first). Allocates.
 std::vector<std::array<std::int32_t, 2>> unique_edges(
     const std::vector<std::array<std::int32_t, 3>>& triangles);

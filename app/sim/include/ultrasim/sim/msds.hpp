@@ -379,6 +379,7 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<NodeContact> contacts_;        // in node order
   std::vector<std::uint8_t> held_;           // contact held on the probe surface this step (padded)
   std::vector<std::uint8_t> touching_only_;  // contact on the surface, not inside: may be let go
+  std::vector<std::uint8_t> on_surface_;     // on the mesh's boundary: may slide along the probe
   std::vector<Eigen::Vector3d> contact_normal_;  // the probe's outward normal at a contact
   // A lower bound of each node's signed distance to the probe (mm, padded); see
   // msds_detail::ExplicitNodeArrays.
