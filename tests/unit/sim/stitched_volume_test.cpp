@@ -516,8 +516,8 @@ TEST(StitchedVolume, ImplicitMsdsSubVolumesCutShortKeepTheirSeamsAndSettle) {
     unlimited_gap = std::max(unlimited_gap, unlimited.last_stitch_stats().max_gap_mm);
   }
   EXPECT_TRUE(any_cut) << "a sub-volume's CG stopped by the budget is a frame cut short";
-  // (Under the stick contact 0.63 against 0.70 mm; under the default Coulomb slip 0.32 against
-  // 0.25 mm, both seams narrower.)
+  // (Under the stick contact 0.63 against 0.70 mm; under the default frictionless slip 0.31
+  // against 0.29 mm, with μ 0.1 0.32 against 0.25.)
   EXPECT_LT(starved_gap, 1.5 * unlimited_gap) << "unbudgeted: " << unlimited_gap << " mm";
   // Settled, on the unbudgeted answer but for the stick contact's path floor (the probe caught
   // the skin frame by frame on another path: 10 % of one piece's peak in stitch_price's study).
