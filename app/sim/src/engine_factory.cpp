@@ -36,7 +36,7 @@ std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::
       return std::make_unique<LinearFem>(mesh, tet_materials, fixed_nodes, settings.fem, jobs);
     case EngineKind::kMsdsExplicit:
       return std::make_unique<MsdsEngine>(MsdsIntegrator::kExplicitEuler, mesh, tet_materials,
-                                          fixed_nodes, settings.msds, jobs);
+                                          fixed_nodes, settings.msds, jobs, skin_nodes);
     case EngineKind::kExactFem:
       return std::make_unique<ExactFem>(mesh, tet_materials, fixed_nodes, settings.exact,
                                         skin_nodes, jobs);
@@ -45,7 +45,7 @@ std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::
                                                settings.corotational, jobs);
     case EngineKind::kMsdsImplicit:
       return std::make_unique<MsdsEngine>(MsdsIntegrator::kImplicitEuler, mesh, tet_materials,
-                                          fixed_nodes, settings.msds, jobs);
+                                          fixed_nodes, settings.msds, jobs, skin_nodes);
     case EngineKind::kHyperelasticFem:
       return std::make_unique<HyperelasticFem>(mesh, tet_materials, fixed_nodes,
                                                settings.hyperelastic, jobs);

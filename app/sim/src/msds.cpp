@@ -159,7 +159,7 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
                        std::span<const Material> tet_materials,
                        std::span<const std::uint8_t> fixed_nodes, const MsdsSettings& settings,
-                       hal::JobSystem* jobs)
+                       hal::JobSystem* jobs, std::span<const std::uint8_t> reachable_nodes)
     : integrator_(integrator),
       settings_(settings),
       jobs_(jobs),
@@ -168,7 +168,11 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
   check_tet_model("MsdsEngine", mesh, tet_materials, fixed_nodes);
   rest_ = mesh.rest_positions_mm;
   tets_ = mesh.tets;
-  on_surface_ = geometry::boundary_node_flags(mesh);
+  require(reachable_nodes.empty() || reachable_nodes.size() == rest_.size(),
+          "need no reachable-node flags or one per node");
+  on_surface_ = reachable_nodes.empty()
+                    ? geometry::boundary_node_flags(mesh)
+                    : std::vector<std::uint8_t>(reachable_nodes.begin(), reachable_nodes.end());
   build_springs(mesh, tet_materials);
   build_masses(mesh);
   // A node in no tet has no mass and no spring: nothing could move it, so it never moves.

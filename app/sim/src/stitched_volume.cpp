@@ -130,6 +130,9 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     extract_sub_mesh(grid_, mesh_, boxes[s], &sub_tets[s]);
     for (int t : sub_tets[s]) ++tet_copies[t];
   }
+  // The region's surface, where the probe can touch it: a sub-volume's own boundary also runs
+  // along its seams, inside the tissue.
+  const std::vector<std::uint8_t> region_surface = geometry::boundary_node_flags(mesh_);
   for (std::size_t s = 0; s < boxes.size(); ++s) {
     SubVolume& sub = subs_[s];
     sub.box = boxes[s];
@@ -141,6 +144,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
       if (settings_.split_overlap_stiffness) materials.back().youngs_modulus_kpa /= tet_copies[t];
     }
     std::vector<std::uint8_t> fixed(static_cast<std::size_t>(mesh.node_count()));
+    std::vector<std::uint8_t> surface(fixed.size());
     sub.global_node.resize(fixed.size());
     for (int k = 0, l = 0; k < sub.box.nodes.z(); ++k) {
       for (int j = 0; j < sub.box.nodes.y(); ++j) {
@@ -148,6 +152,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
           const Eigen::Vector3i g = sub.box.first_node + Eigen::Vector3i(i, j, k);
           sub.global_node[l] = grid_.node_index(g.x(), g.y(), g.z());
           fixed[l] = fixed_nodes[sub.global_node[l]];
+          surface[l] = region_surface[sub.global_node[l]];
         }
       }
     }
@@ -171,7 +176,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     }
     // One sub-volume per job-system task: each engine runs single-threaded.
     try {
-      sub.engine = make_engine(method, mesh, materials, fixed, settings);
+      sub.engine = make_engine(method, mesh, materials, fixed, settings, surface);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("StitchedVolume: " + sub_name(sub.box) + ": " + e.what());
     }

@@ -598,6 +598,35 @@ TEST(MsdsPress, LiftingTheProbeLetsTheTissueRelaxBackToRest) {
   EXPECT_LT(engine.displacements_mm().cwiseAbs().maxCoeff(), 1e-4);
 }
 
+// The Coulomb slip moves only nodes the probe can reach (the skin): with none reachable, every
+// caught node is held where it was caught, as the published stick contact holds it, to the bit.
+TEST(MsdsPress, NodesTheProbeCannotReachAreHeldAsTheStickContactHoldsThem) {
+  const Block b = make_block();
+  const ProbeCollider probe = ProbeCollider::sphere(
+      SphereCollider::behind_face({1.3, 0.7, 2.0}, Eigen::Vector3d(0.3, 0, 1).normalized(), 15.0));
+  const std::vector<std::uint8_t> none(b.mesh.node_count(), 0);
+  for (auto integrator : {kExplicit, kImplicit}) {
+    const MsdsSettings s =
+        integrator == kImplicit ? with_step(0.025, 4) : with_step(0.5 * explicit_bound_s(b), 20);
+    MsdsSettings stick_s = s;
+    stick_s.contact.model = HeldContactModel::kStick;
+    MsdsEngine unreachable(integrator, b.mesh, b.materials, b.fixed, s, nullptr, none);
+    MsdsEngine stick = make_engine(b, integrator, stick_s);
+    MsdsEngine slip = make_engine(b, integrator, s);
+    for (int frame = 0; frame < 5; ++frame) {
+      unreachable.step(&probe, 1.0 / 30);
+      stick.step(&probe, 1.0 / 30);
+      slip.step(&probe, 1.0 / 30);
+    }
+    EXPECT_EQ(unreachable.displacements_mm(), stick.displacements_mm());
+    EXPECT_NE(slip.displacements_mm(), stick.displacements_mm()) << "the tilted press slides";
+  }
+  const std::vector<std::uint8_t> too_few(3, 1);
+  EXPECT_THROW(
+      MsdsEngine(kImplicit, b.mesh, b.materials, b.fixed, MsdsSettings{}, nullptr, too_few),
+      std::invalid_argument);
+}
+
 TEST(MsdsPress, ContactForceGrowsWithPressDepth) {
   const Block b = make_block();
   double previous = 0.0;

@@ -23,7 +23,8 @@ struct EngineSettings {
 };
 
 // Builds the given method on the mesh. `skin_nodes` (empty or one flag per node) are the nodes
-// the probe can reach: the exact FEM precomputes their Green's functions. `jobs`, if given, must
+// the probe can reach: the exact FEM precomputes their Green's functions, and the MSDS lets only
+// these slide along the probe (empty: its mesh's boundary). `jobs`, if given, must
 // outlive the engine. Throws std::invalid_argument for bad inputs (as the engines' constructors).
 std::unique_ptr<DeformationEngine> make_engine(EngineKind kind, const geometry::TetMesh& mesh,
                                                std::span<const Material> tet_materials,

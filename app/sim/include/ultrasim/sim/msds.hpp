@@ -133,9 +133,13 @@ class MsdsEngine final : public DeformationEngine {
   // Throws std::invalid_argument when no node is fixed ("... singular ..."), a tet references a
   // node outside the mesh or has no positive rest volume, a material is out of its physical
   // range, or a setting is out of range. Allocates (every buffer step() needs).
+  // `reachable_nodes` (empty or one flag per node): the tissue's surface the probe can touch,
+  // whose held nodes may slide along it (HeldContactModel::kCoulombSlip); empty: the mesh's
+  // boundary (a stitched sub-volume's includes its seams, which are inside the tissue).
   MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
              std::span<const Material> tet_materials, std::span<const std::uint8_t> fixed_nodes,
-             const MsdsSettings& settings, hal::JobSystem* jobs = nullptr);
+             const MsdsSettings& settings, hal::JobSystem* jobs = nullptr,
+             std::span<const std::uint8_t> reachable_nodes = {});
   MsdsEngine(const MsdsEngine&) = delete;
   MsdsEngine& operator=(const MsdsEngine&) = delete;
   ~MsdsEngine() override;
