@@ -3,7 +3,6 @@
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <map>
 #include <stdexcept>
 #include <utility>
 
@@ -101,47 +100,35 @@ std::vector<std::array<std::int32_t, 3>> boundary_faces(const TetMesh& mesh) {
   // Faces of a positively oriented tet (a, b, c, d), each wound to face outwards.
   constexpr std::array<std::array<int, 3>, 4> kFaces = {
       {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}}};
-  std::map<std::array<std::int32_t, 3>, std::pair<int, std::array<std::int32_t, 3>>> faces;
+  // Every tet's faces keyed by their sorted nodes, sorted by key: a key met once is a boundary
+  // face, kept as its tet wound it (in key order).
+  using Face = std::array<std::int32_t, 3>;
+  std::vector<std::pair<Face, Face>> faces;  // (key, wound)
+  faces.reserve(4 * mesh.tets.size());
   for (const Tet& tet : mesh.tets) {
     for (const auto& f : kFaces) {
-      const std::array<std::int32_t, 3> wound{tet[f[0]], tet[f[1]], tet[f[2]]};
-      auto key = wound;
+      const Face wound{tet[f[0]], tet[f[1]], tet[f[2]]};
+      Face key = wound;
       std::sort(key.begin(), key.end());
-      auto [it, inserted] = faces.try_emplace(key, 0, wound);
-      ++it->second.first;
+      faces.emplace_back(key, wound);
     }
   }
-  std::vector<std::array<std::int32_t, 3>> result;
-  for (const auto& [key, entry] : faces) {
-    if (entry.first == 1) result.push_back(entry.second);
+  std::sort(faces.begin(), faces.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Face> result;
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j].first == faces[i].first) ++j;
+    if (j - i == 1) result.push_back(faces[i].second);
+    i = j;
   }
   return result;
 }
 
 std::vector<std::uint8_t> boundary_node_flags(const TetMesh& mesh) {
-  // Every tet's faces as sorted node triples, sorted: a face met once is on the boundary.
-  std::vector<std::array<std::int32_t, 3>> faces;
-  faces.reserve(4 * mesh.tets.size());
-  for (const Tet& tet : mesh.tets) {
-    for (int skip = 0; skip < 4; ++skip) {
-      std::array<std::int32_t, 3> face{};
-      int k = 0;
-      for (int i = 0; i < 4; ++i) {
-        if (i != skip) face[k++] = tet[i];
-      }
-      std::sort(face.begin(), face.end());
-      faces.push_back(face);
-    }
-  }
-  std::sort(faces.begin(), faces.end());
   std::vector<std::uint8_t> on_boundary(mesh.rest_positions_mm.size(), 0);
-  for (std::size_t i = 0; i < faces.size();) {
-    std::size_t j = i + 1;
-    while (j < faces.size() && faces[j] == faces[i]) ++j;
-    if (j - i == 1) {
-      for (std::int32_t node : faces[i]) on_boundary[node] = 1;
-    }
-    i = j;
+  for (const auto& face : boundary_faces(mesh)) {
+    for (std::int32_t node : face) on_boundary[node] = 1;
   }
   return on_boundary;
 }
