@@ -10,6 +10,7 @@
 #include <string>
 
 #include "engine_scene.hpp"
+#include "engine_settings.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
@@ -25,11 +26,9 @@ void BM_Engine(benchmark::State& state) {
   const Block& b = block(static_cast<int>(state.range(1)), static_cast<int>(state.range(2)),
                          static_cast<int>(state.range(3)));
   drivers::posix::ThreadPool jobs(static_cast<int>(state.range(4)));
-  sim::EngineSettings settings;
   // The published stick contact, for every method alike.
+  sim::EngineSettings settings = testing::stick_contact();
   settings.exact.contact = sim::ContactModel::kStick;
-  settings.fem.contact.model = sim::HeldContactModel::kStick;
-  settings.msds.contact.model = sim::HeldContactModel::kStick;
   auto engine = sim::make_engine(kind, b.mesh, b.materials, b.fixed, settings, b.skin, &jobs);
   auto reference = sim::make_engine(sim::EngineKind::kExactFem, b.mesh, b.materials, b.fixed,
                                     settings, b.skin, &jobs);

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "engine_scene.hpp"
+#include "engine_settings.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
@@ -43,10 +44,8 @@ const bench::Block& scene() {
 
 // engine_bench's contact: the published stick, every node the probe touches held where it is put.
 sim::EngineSettings stick_contact_settings() {
-  sim::EngineSettings settings;
+  sim::EngineSettings settings = testing::stick_contact();
   settings.exact.contact = sim::ContactModel::kStick;
-  settings.fem.contact.model = sim::HeldContactModel::kStick;
-  settings.msds.contact.model = sim::HeldContactModel::kStick;
   return settings;
 }
 

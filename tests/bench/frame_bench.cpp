@@ -8,6 +8,7 @@
 #include <cmath>
 #include <vector>
 
+#include "engine_settings.hpp"
 #include "ultrasim/geometry/tet_locator.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/imaging/bscan.hpp"
@@ -34,12 +35,7 @@ struct Scene {
   }
 };
 
-sim::FemSettings pcg_settings(int iterations, double relative_tolerance) {
-  sim::FemSettings s;
-  s.pcg_iterations_per_frame = iterations;
-  s.relative_tolerance = relative_tolerance;
-  return s;
-}
+using testing::pcg_settings;
 
 Scene& scene() {
   static Scene s;

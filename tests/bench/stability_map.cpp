@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "engine_scene.hpp"
+#include "engine_settings.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/msds.hpp"
 
@@ -68,14 +69,6 @@ int tet_count() {
   return bench::block(kNodes[0], kNodes[1], kNodes[2]).mesh.tet_count();
 }
 
-// The map is drawn for the published stick contact (docs/accuracy.md's figures).
-sim::EngineSettings published_contact() {
-  sim::EngineSettings s;
-  s.fem.contact.model = sim::HeldContactModel::kStick;
-  s.msds.contact.model = sim::HeldContactModel::kStick;
-  return s;
-}
-
 // dt × stiffness for both MSDS integrators, physical masses: 10 frames of 20 steps while a face
 // presses 2 mm (0.2 mm a frame).
 void sweep_time_step(std::ofstream& csv) {
@@ -85,7 +78,8 @@ void sweep_time_step(std::ofstream& csv) {
     for (int e = -16; e <= -4; ++e) {  // dt = 10^(e/2) s: 1e-8 .. 1e-2
       const double dt_s = std::pow(10.0, 0.5 * e);
       for (auto kind : {sim::EngineKind::kMsdsExplicit, sim::EngineKind::kMsdsImplicit}) {
-        sim::EngineSettings settings = published_contact();
+        // The map is drawn for the published stick contact (docs/accuracy.md's figures).
+        sim::EngineSettings settings = testing::stick_contact();
         settings.msds.scale_mass_for_explicit_step = false;
         settings.msds.time_step_s = dt_s;
         settings.msds.steps_per_frame = 20;
@@ -120,10 +114,8 @@ void sweep_poisson_ratio(std::ofstream& csv) {
                                    sim::EngineKind::kExactFem};
   for (double nu : nus) {
     const auto m = materials(1.0, nu);
-    sim::EngineSettings settings;
+    sim::EngineSettings settings = testing::stick_contact();
     settings.exact.contact = sim::ContactModel::kStick;
-    settings.fem.contact.model = sim::HeldContactModel::kStick;
-    settings.msds.contact.model = sim::HeldContactModel::kStick;
     const auto reference = make(sim::EngineKind::kExactFem, m, settings);
     std::vector<std::unique_ptr<sim::DeformationEngine>> engines;
     for (auto kind : kinds) engines.push_back(make(kind, m, settings));
@@ -163,7 +155,7 @@ void sweep_depth(std::ofstream& csv) {
       sim::EngineKind::kMsdsImplicit, sim::EngineKind::kHyperelasticFem};
   const auto m = materials(1.0, 0.45);
   for (auto kind : kinds) {
-    const auto engine = make(kind, m, published_contact());
+    const auto engine = make(kind, m, testing::stick_contact());
     for (int frame = 1; frame <= 120; ++frame) {
       const double depth_mm = 0.5 * frame;
       const auto probe = face_at_depth(depth_mm);

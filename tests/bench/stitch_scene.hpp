@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "engine_settings.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
-#include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
 
@@ -26,16 +26,9 @@ struct Region {
 };
 
 // side × side × depth nodes; the fat is the top 8 mm. Allocates.
-// The price of stitching is measured under the published stick contact: a still probe's answer
-// then depends only on which nodes it caught. Under the kiosk's default frictionless slip the held
-// nodes slide towards the answer over tens of frames; with friction one piece and the stitched
-// region come to rest in different states (docs/accuracy.md, "The price of stitching").
-inline sim::EngineSettings stick_contact() {
-  sim::EngineSettings s;
-  s.fem.contact.model = sim::HeldContactModel::kStick;
-  s.msds.contact.model = sim::HeldContactModel::kStick;
-  return s;
-}
+// The price of stitching is measured under the published stick contact (engine_settings.hpp says
+// why).
+using ultrasim::testing::stick_contact;
 
 inline Region make_region(int side, int depth) {
   Region r;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "engine_settings.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
@@ -199,10 +200,8 @@ TEST(CorotationalFem, SmallPressAgreesWithConvergedLinearFemAndTheGapShrinksWith
     double force = 0.0;         // |F_corot / F_linear − 1|
   };
   const auto gap_at = [&](double depth_mm) {
-    FemSettings stick;  // as the corotational FEM holds its contacts
-    stick.pcg_iterations_per_frame = 2000;
-    stick.relative_tolerance = 1e-13;
-    stick.contact.model = HeldContactModel::kStick;
+    FemSettings stick = ultrasim::testing::pcg_settings(2000, 1e-13);
+    stick.contact.model = HeldContactModel::kStick;  // as the corotational FEM holds its contacts
     LinearFem linear(b.mesh, b.materials, b.fixed, stick);
     const auto linear_stats =
         linear.step(SphereCollider::behind_face({0, 0, depth_mm}, {0, 0, 1}, 15.0));

@@ -7,18 +7,14 @@
 #include <random>
 
 #include "block_fixture.hpp"
+#include "engine_settings.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 
 namespace ultrasim::sim {
 namespace {
 
-FemSettings pcg_settings(int iterations, double relative_tolerance) {
-  FemSettings s;
-  s.pcg_iterations_per_frame = iterations;
-  s.relative_tolerance = relative_tolerance;
-  return s;
-}
+using ultrasim::testing::pcg_settings;
 
 using testing::Block;
 

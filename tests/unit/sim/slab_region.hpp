@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "engine_settings.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
-#include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/settings.hpp"
 
 namespace ultrasim::sim::testing {
@@ -51,19 +51,6 @@ inline double max_norm(const Eigen::VectorXd& u_mm) {
   return m;
 }
 
-// The published stick contact for the PCG FEM and the MSDS. The price of stitching against one
-// piece under a still probe is measured with it: the answer then depends only on which nodes the
-// probe caught, and the same frames catch the same nodes stitched and in one piece. Under the
-// default frictionless slip the answer is unique but the held nodes slide towards it a step at a
-// time, tens of frames (StitchedVolume.FrictionlessSlipSettlesWhereOnePieceDoes); with friction
-// any state whose held nodes' pull stays inside the friction cone is at rest, and the two reach
-// different ones by their different paths (7.5 % of the peak apart with μ 0.1 in
-// StitchedVolume.PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses's press).
-inline EngineSettings stick_contact() {
-  EngineSettings s;
-  s.fem.contact.model = HeldContactModel::kStick;
-  s.msds.contact.model = HeldContactModel::kStick;
-  return s;
-}
+using ultrasim::testing::stick_contact;  // engine_settings.hpp says why the stitching tests use it
 
 }  // namespace ultrasim::sim::testing

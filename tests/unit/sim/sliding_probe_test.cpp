@@ -11,6 +11,7 @@
 
 #include <cstdio>
 
+#include "engine_settings.hpp"
 #include "slab_region.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
@@ -18,6 +19,7 @@ namespace ultrasim::sim {
 namespace {
 
 using testing::max_norm;
+using ultrasim::testing::with_held_contact;
 
 constexpr double kDepthMm = 2.0;
 constexpr double kStartXmm = 20.0;
@@ -48,15 +50,6 @@ struct SlideFigures {
   double largest_move_after_mm = 0.0;
   int refused_frames = 0;  // while sliding and settling
 };
-
-EngineSettings with_held_contact(HeldContactModel model, double friction_coefficient) {
-  EngineSettings settings;
-  for (HeldContactSettings* c : {&settings.fem.contact, &settings.msds.contact}) {
-    c->model = model;
-    c->friction_coefficient = friction_coefficient;
-  }
-  return settings;
-}
 
 SlideFigures slide(EngineKind kind, const testing::SlabRegion& r,
                    const EngineSettings& settings = {}, double depth_mm = kDepthMm) {

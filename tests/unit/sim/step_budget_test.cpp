@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "engine_settings.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/exact_fem.hpp"
@@ -49,10 +50,7 @@ std::unique_ptr<DeformationEngine> make(EngineKind kind, const Block& b,
 // Without friction a still probe has one answer, whatever path the frames took to it (with
 // friction, any state whose held nodes' pull stays inside the friction cone is at rest).
 EngineSettings frictionless() {
-  EngineSettings s;
-  s.fem.contact.friction_coefficient = 0.0;
-  s.msds.contact.friction_coefficient = 0.0;
-  return s;
+  return ultrasim::testing::with_held_contact(HeldContactModel::kCoulombSlip, 0.0);
 }
 
 double max_abs(const Eigen::VectorXd& v) {
