@@ -704,30 +704,35 @@ void MsdsEngine::apply_contacts(const ProbeCollider* probe, bool new_probe) {
 }
 
 void MsdsEngine::slide_along_probe(const ProbeCollider& probe, NodeContact& c) {
-  Eigen::Vector3d elastic, damping;
-  gather_node_forces(c.node, elastic, damping);
-  const SurfacePoint slid =
-      slide_held_node(probe, {c.target_mm, c.normal}, elastic, node_stiffness_block(c.node),
-                      settings_.contact.friction_coefficient);
+  Eigen::Vector3d elastic;
+  Eigen::Matrix3d stiffness;
+  elastic_force_and_stiffness(c.node, elastic, stiffness);
+  const SurfacePoint slid = slide_held_node(probe, {c.target_mm, c.normal}, elastic, stiffness,
+                                            settings_.contact.friction_coefficient);
   c.target_mm = slid.point_mm;
   c.normal = slid.normal;
   position_.set(c.node, c.target_mm);
   contact_normal_[c.node] = c.normal;
 }
 
-Eigen::Matrix3d MsdsEngine::node_stiffness_block(int node) const {
+void MsdsEngine::elastic_force_and_stiffness(int node, Eigen::Vector3d& elastic_mn,
+                                             Eigen::Matrix3d& stiffness_mn_per_mm) const {
   // The springs' material stiffness along their present directions (their tension's sideways
   // stiffness left out: it is small for springs near their rest length, and leaving it out
   // only shortens a slide); the anchor's on the diagonal.
-  Eigen::Matrix3d k = Eigen::Matrix3d::Identity() * anchor_stiffness_mn_per_mm_[node];
+  elastic_mn.setZero();
+  stiffness_mn_per_mm = Eigen::Matrix3d::Identity() * anchor_stiffness_mn_per_mm_[node];
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
     const MsdsSpring& s = springs_[adjacency_spring_[e]];
     double length = 0.0;
     const Eigen::Vector3d dir =
         spring_direction(node, adjacency_other_[e], s.rest_length_mm, length);
-    k.noalias() += s.stiffness_mn_per_mm * dir * dir.transpose();
+    elastic_mn += s.stiffness_mn_per_mm * (length - s.rest_length_mm) * dir;
+    stiffness_mn_per_mm.noalias() += s.stiffness_mn_per_mm * dir * dir.transpose();
   }
-  return k;
+  Eigen::Vector3d anchor_elastic, anchor_damping;
+  anchor_force(node, anchor_elastic, anchor_damping);
+  elastic_mn += anchor_elastic;
 }
 
 // The probe's signed distance is a distance (1-Lipschitz): it changes no faster than a node

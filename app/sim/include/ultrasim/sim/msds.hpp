@@ -282,8 +282,10 @@ class MsdsEngine final : public DeformationEngine {
   void release_if_pulled_away(int node, const Eigen::Vector3d& force_mn);
   // HeldContactModel::kCoulombSlip: a held node slides along the probe (slide_held_node).
   void slide_along_probe(const ProbeCollider& probe, NodeContact& contact);
-  // The node's own block of the springs' (and its anchor's) stiffness, mN/mm.
-  Eigen::Matrix3d node_stiffness_block(int node) const;
+  // The springs' and the anchor's elastic force on the node (as gather_node_forces) and the
+  // node's own block of their stiffness, in one pass over its springs.
+  void elastic_force_and_stiffness(int node, Eigen::Vector3d& elastic_mn,
+                                   Eigen::Matrix3d& stiffness_mn_per_mm) const;
   // Every spring's elastic and damping force at the current state and its implicit block.
   void compute_spring_forces(double dt_s);
   // A node's share of those: Σ ± over its springs, in adjacency order.
