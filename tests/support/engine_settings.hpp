@@ -20,15 +20,13 @@ inline sim::EngineSettings with_held_contact(sim::HeldContactModel model,
   return settings;
 }
 
-// The published stick contact for the PCG FEM and the MSDS. The price of stitching against one
-// piece under a still probe is measured with it (and the figures documented under it): the answer
-// then depends only on which nodes the probe caught, and the same frames catch the same nodes
-// stitched and in one piece. Under the default frictionless slip the answer is unique but the
-// held nodes slide towards it a step at a time, tens of frames
-// (StitchedVolume.FrictionlessSlipSettlesWhereOnePieceDoes); with friction any state whose held
-// nodes' pull stays inside the friction cone is at rest, and the two reach different ones by
-// their different paths (7.5 % of the peak apart with μ 0.1 in
-// StitchedVolume.PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses's press; docs/accuracy.md).
+// The published stick contact for the PCG FEM and the MSDS. Most of the price of stitching
+// against one piece under a still probe is measured and documented with it: the answer then
+// depends only on which nodes the probe caught, and the same frames catch the same nodes stitched
+// and in one piece. With friction any state whose held nodes' pull stays inside the friction cone
+// is at rest, and the two reach different ones by their different paths (docs/accuracy.md); the
+// default frictionless slip has one answer, and the PCG FEM's tests hold both contacts to it
+// (StitchedVolume.PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses, FineCorrection's ten frames).
 inline sim::EngineSettings stick_contact() {
   return with_held_contact(sim::HeldContactModel::kStick);
 }

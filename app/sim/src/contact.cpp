@@ -40,4 +40,19 @@ SurfacePoint slide_held_node(const ProbeCollider& probe, const SurfacePoint& hel
   return probe.closest_surface_point(held.point_mm + slide_mm * direction);
 }
 
+HeldNodeLaw coulomb_hold(const Eigen::Vector3d& normal, const Eigen::Vector3d& tissue_force_mn,
+                         double friction_coefficient) {
+  if (!tissue_force_mn.allFinite()) return {};
+  // Pulled off the probe (the caller lets go of it next): no friction holds it along the surface.
+  const double push_mn = std::max(0.0, -tissue_force_mn.dot(normal));
+  const Eigen::Vector3d along_mn = tissue_force_mn - tissue_force_mn.dot(normal) * normal;
+  const double pull_mn = along_mn.norm();
+  const double bound_mn = friction_coefficient * push_mn;
+  if (bound_mn > 0.0 && pull_mn <= bound_mn) return {};
+  HeldNodeLaw law;
+  law.slides = true;
+  if (pull_mn > 0.0) law.friction_mn = -(bound_mn / pull_mn) * along_mn;
+  return law;
+}
+
 }  // namespace ultrasim::sim

@@ -51,7 +51,9 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
   for (int i = 0; i < 3 * n; ++i) {
     if (diagonal[i] > 0.0) inverse_diagonal_[i] = 1.0 / diagonal[i];
   }
-  free_.assign(n, 0);
+  free_.assign(n, kHeld);
+  slide_normal_.assign(n, Eigen::Vector3d::UnitZ());
+  sliding_.reserve(n);
   stepped_.assign(subs_.size(), 0);
   stepped_list_.reserve(subs_.size());
   for (Eigen::VectorXd* v : {&x_, &r_, &z_, &p_, &q_}) *v = Eigen::VectorXd::Zero(3 * n);
@@ -85,6 +87,13 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
   gather(q, true);
 }
 
+void FineCorrection::constrain_sliding(Eigen::VectorXd& v) const {
+  for (int g : sliding_) {
+    auto d = v.segment<3>(3 * g);
+    d -= d.dot(slide_normal_[g]) * slide_normal_[g];
+  }
+}
+
 FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* const> engines,
                                                std::span<const std::uint8_t> stepped,
                                                int iterations, double relative_tolerance,
@@ -104,13 +113,23 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   if (stepped_list_.empty() || iterations <= 0) return result;
   const int n = static_cast<int>(free_.size());
   bool any_free = false;
+  sliding_.clear();
   for (int g = 0; g < n; ++g) {
-    bool free = !fixed_[g];
-    for (int c = copies_begin_[g]; free && c < copies_begin_[g + 1]; ++c) {
-      free = stepped[copies_[c].sub] && !engines[copies_[c].sub]->holds_node(copies_[c].local);
+    // Held if any copy is (or did not step); sliding if any copy slides, along its normal.
+    std::uint8_t state = fixed_[g] ? kHeld : kFree;
+    for (int c = copies_begin_[g]; state != kHeld && c < copies_begin_[g + 1]; ++c) {
+      const DeformationEngine& engine = *engines[copies_[c].sub];
+      if (!stepped[copies_[c].sub]) {
+        state = kHeld;
+      } else if (engine.holds_node(copies_[c].local)) {
+        const DeformationEngine::SlidingHold* hold = engine.sliding_hold(copies_[c].local);
+        state = hold != nullptr ? kSliding : kHeld;
+        if (hold != nullptr) slide_normal_[g] = hold->normal;
+      }
     }
-    free_[g] = free ? 1 : 0;
-    any_free = any_free || free;
+    free_[g] = state;
+    if (state == kSliding) sliding_.push_back(g);
+    any_free = any_free || state != kHeld;
   }
   if (!any_free) return result;
   // The residual: the tissue's forces summed over the copies (the seams' pulls on a node whose
@@ -125,16 +144,26 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   gather(r_, false);
   const double load = r_.norm();
   gather(r_, true);
+  for (int g : sliding_) {
+    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+      const auto* hold = engines[copies_[c].sub]->sliding_hold(copies_[c].local);
+      if (hold != nullptr) r_.segment<3>(3 * g) += hold->friction_mn;
+    }
+  }
+  const auto filter = [this](Eigen::VectorXd& v) { constrain_sliding(v); };
+  filter(r_);
   x_.setZero();
   z_ = inverse_diagonal_.cwiseProduct(r_);
+  filter(z_);
   p_ = z_;
   double rz = r_.dot(z_);
   double norm = r_.norm();
   while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * load &&
          (!may_continue || may_continue())) {
     multiply(p_, q_, jobs);
+    filter(q_);
     // Not positive definite along p: stop with what there is.
-    if (!jacobi_cg_update(inverse_diagonal_, q_, x_, r_, z_, p_, rz)) break;
+    if (!jacobi_cg_update(inverse_diagonal_, q_, x_, r_, z_, p_, rz, filter)) break;
     norm = r_.norm();
     ++result.iterations;
   }

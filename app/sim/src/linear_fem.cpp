@@ -109,6 +109,9 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
     if (fixed_[node]) free_mask_.segment<3>(3 * node).setZero();
   }
   r_ = z_ = p_ = q_ = Eigen::VectorXd::Zero(3 * n);
+  sliding_nodes_.reserve(n);
+  sliding_hold_.resize(n);
+  slides_.assign(n, 0);
   last_good_u_ = u_;
 }
 
@@ -142,6 +145,11 @@ void LinearFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
 void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
   for (int node = 0; node < node_count(); ++node) {
     if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
+  }
+  for (int node : sliding_nodes_) {
+    const Eigen::Vector3d& n = sliding_hold_[node].normal;
+    const Eigen::Vector3d du = du_mm.segment<3>(3 * node);
+    u_.segment<3>(3 * node) += du - du.dot(n) * n;
   }
   update_deformed();
 }
@@ -223,54 +231,64 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
       }
     }
   }
+  stop_sliding();
   if (collider != nullptr && settings_.contact.model == HeldContactModel::kCoulombSlip) {
-    // In node order, each against its neighbours' new places (Gauss-Seidel).
     for (int node = 0; node < n; ++node) {
-      if (in_contact_[node]) slide_along_probe(*collider, node);
+      if (!in_contact_[node]) continue;
+      // nodal_force_mn is what holds the node where it is: the tissue's force is its opposite.
+      const HeldNodeLaw law = coulomb_hold(contact_normal_[node], -nodal_force_mn(node),
+                                           settings_.contact.friction_coefficient);
+      if (!law.slides) continue;
+      sliding_nodes_.push_back(node);
+      sliding_hold_[node] = {contact_normal_[node], law.friction_mn};
+      slides_[node] = 1;
     }
   }
   for (int node = 0; node < n; ++node) {
     const bool held = fixed_[node] || prescribed_[node] || in_contact_[node];
     free_mask_.segment<3>(3 * node).setConstant(held ? 0.0 : 1.0);
   }
+  for (int node : sliding_nodes_) free_mask_.segment<3>(3 * node).setOnes();
 }
 
-void LinearFem::slide_along_probe(const ProbeCollider& collider, int node) {
-  // nodal_force_mn is what holds the node where it is: the tissue's force is its opposite.
-  const SurfacePoint slid = slide_held_node(
-      collider, {rest_[node] + u_.segment<3>(3 * node), contact_normal_[node]},
-      -nodal_force_mn(node), node_stiffness_block(node), settings_.contact.friction_coefficient);
-  u_.segment<3>(3 * node) = slid.point_mm - rest_[node];
-  contact_normal_[node] = slid.normal;
+void LinearFem::stop_sliding() {
+  for (int node : sliding_nodes_) slides_[node] = 0;
+  sliding_nodes_.clear();
 }
 
-Eigen::Matrix3d LinearFem::node_stiffness_block(int node) const {
-  Eigen::Matrix3d k;
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) k(i, j) = stiffness_.coeff(3 * node + i, 3 * node + j);
+void LinearFem::constrain(Eigen::VectorXd& v) const {
+  v.array() *= free_mask_.array();
+  for (int node : sliding_nodes_) {
+    auto d = v.segment<3>(3 * node);
+    d -= d.dot(sliding_hold_[node].normal) * sliding_hold_[node].normal;
   }
-  if (has_anchors_) k.diagonal() += anchor_stiffness_.segment<3>(3 * node);
-  return k;
 }
 
 FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
                                 const StepBudget& may_continue) {
   FemStepStats stats;
-  // The free system is (K + A)_ff u_f = b with b = f_A − K_fc u_c (A, f_A: the anchor springs'
-  // stiffness and load; no other external loads): measure the residual against |b|, so a warm
-  // start that is already close does not make the tolerance stricter.
-  q_ = u_.cwiseProduct((1.0 - free_mask_.array()).matrix());
+  // The free system is S (K + A) S u = S b with b = f_A + f_μ − K u_c (S: constrain(), the
+  // directions the nodes may move; u_c = u − S u, what the constraints hold; A, f_A: the anchor
+  // springs' stiffness and load; f_μ: the friction on sliding nodes; no other external loads):
+  // measure the residual against |S b|, so a warm start that is already close does not make the
+  // tolerance stricter.
+  q_ = u_;
+  constrain(q_);
+  q_ = u_ - q_;
   system_times(q_, z_);
-  if (has_anchors_) z_ -= anchor_load_mn_;
-  const double rhs_norm = z_.cwiseProduct(free_mask_).norm();
+  z_ = -z_;
+  add_loads(z_);
+  constrain(z_);
+  const double rhs_norm = z_.norm();
   system_times(u_, r_);
   r_ = -r_;
-  if (has_anchors_) r_ += anchor_load_mn_;
-  r_.array() *= free_mask_.array();
+  add_loads(r_);
+  constrain(r_);
   // With nothing prescribed (probe lifted) the answer is rest and |b| = 0: measure progress
   // against where this frame started instead.
   const double reference = std::max({rhs_norm, r_.norm(), 1e-30});
   z_ = inverse_diagonal_.cwiseProduct(r_);
+  constrain(z_);
   p_ = z_;
   double rz = r_.dot(z_);
   double residual = r_.norm();
@@ -281,9 +299,10 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
       break;
     }
     system_times(p_, q_);
-    q_.array() *= free_mask_.array();
+    constrain(q_);
     // Converged to rounding or the system lost definiteness: stop.
-    if (!jacobi_cg_update(inverse_diagonal_, q_, u_, r_, z_, p_, rz)) break;
+    const auto filter = [this](Eigen::VectorXd& v) { constrain(v); };
+    if (!jacobi_cg_update(inverse_diagonal_, q_, u_, r_, z_, p_, rz, filter)) break;
     residual = r_.norm();
     ++it;
   }
@@ -295,6 +314,11 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
     stats.reset_after_divergence = true;
   }
   return stats;
+}
+
+void LinearFem::add_loads(Eigen::VectorXd& forces_mn) const {
+  if (has_anchors_) forces_mn += anchor_load_mn_;
+  for (int node : sliding_nodes_) forces_mn.segment<3>(3 * node) += sliding_hold_[node].friction_mn;
 }
 
 double LinearFem::update_contact_forces() {
@@ -359,6 +383,7 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
     out.recovery = Recovery::kKeptLastGood;
     u_ = last_good_u_;
     std::fill(in_contact_.begin(), in_contact_.end(), 0);
+    stop_sliding();
     update_deformed();
   }
   return out;
@@ -375,6 +400,7 @@ void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
     in_contact_[node] = 0;  // the next step finds the probe's contacts afresh
   }
+  stop_sliding();
   last_good_u_ = u_;
   update_deformed();
 }

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "slab_region.hpp"
+#include "sliding_reference.hpp"
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/stitched_volume.hpp"
@@ -84,6 +85,45 @@ TEST(FineCorrection, OnOnePieceItSolvesTheFreeNodesBalance) {
   }
 }
 
+// Nodes the probe holds along its normal only (the PCG FEM's Coulomb slip) move in their tangent
+// planes, against their friction: on one piece the correction reaches the frame's equilibrium
+// with them free there, as a fresh factorisation of that reduced problem gives it.
+TEST(FineCorrection, OnOnePieceItSlidesTheSlidingNodesInTheirTangentPlanes) {
+  const Region r = make_region({12, 10, 6});
+  FemSettings settings;
+  settings.pcg_iterations_per_frame = 2;  // far from settled: the correction has work to do
+  settings.contact = {HeldContactModel::kCoulombSlip, 0.1};
+  LinearFem fem(r.mesh, r.materials, r.fixed, settings);
+  for (int frame = 0; frame < 4; ++frame) {
+    // Pressed, then moved along x: some held nodes slide against friction, some stick.
+    const double x = frame < 2 ? 11.0 : 13.0;
+    const ProbeCollider probe =
+        ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(x, 9.0, 2.0 - 8.0), 8.0});
+    fem.step(&probe, 1.0 / 60);
+  }
+  int sliding = 0, with_friction = 0;
+  for (int n = 0; n < fem.node_count(); ++n) {
+    sliding += fem.sliding_hold(n) != nullptr;
+    with_friction += fem.sliding_hold(n) != nullptr && fem.sliding_hold(n)->friction_mn.norm() > 0;
+  }
+  ASSERT_GT(with_friction, 2) << sliding << " sliding";
+  const Eigen::VectorXd expected = testing::constrained_equilibrium(fem);
+
+  std::vector<int> grid_nodes(r.mesh.node_count());
+  std::iota(grid_nodes.begin(), grid_nodes.end(), 0);
+  const std::vector<std::vector<int>> maps{grid_nodes};
+  const std::vector<const DeformationEngine*> built{&fem};
+  FineCorrection fine(maps, built, r.fixed);
+  const std::vector<DeformationEngine*> engines{&fem};
+  const std::vector<std::uint8_t> stepped{1};
+  const FineCorrection::Result result = fine.correct(engines, stepped, 4000, 1e-13, {}, nullptr);
+  EXPECT_LT(result.relative_residual, 1e-13);
+  EXPECT_GT(result.largest_move_mm, 0.01);
+  const double peak = expected.cwiseAbs().maxCoeff();
+  ASSERT_GT(peak, 1.0);
+  EXPECT_LT((fem.displacements_mm() - expected).cwiseAbs().maxCoeff(), 1e-8 * peak);
+}
+
 TEST(FineCorrection, StopsWhenTheFrameHasNoTimeLeft) {
   const Region r = make_region({7, 6, 5});
   LinearFem fem(r.mesh, r.materials, r.fixed, FemSettings{});
@@ -114,42 +154,48 @@ TEST(FineCorrection, StopsWhenTheFrameHasNoTimeLeft) {
 // Issue 5's target: a probe put down 3 mm deep where four sub-volumes meet and held still; ten
 // frames later the stitched PCG FEM (selective, seams exchanged once a frame) is within 2 % of
 // one piece (max norm, over the largest one-piece displacement) with the fine correction, and
-// far from it with the seams alone (measured: 0.09 % against 19 %). Under the published stick
-// contact (stick_contact() says why); under the default Coulomb slip the contact patch itself is
-// still sliding ten frames after a press (docs/accuracy.md).
+// far from it with the seams alone. Under the default frictionless Coulomb slip (measured 0.29 %
+// against 25 %; the correction moves the sliding nodes in their tangent planes) and under the
+// published stick contact (0.09 % against 19 %). With friction (not the default) the answer
+// depends on the path and the two reach different ones (3.2 % with μ 0.1, docs/accuracy.md).
 TEST(FineCorrection, AStitchedPcgFemTenFramesAfterAPlacedProbeIsWithinTwoPercentOfOnePiece) {
   const Region r = make_region({30, 30, 8});
   hal::InlineJobSystem jobs;
-  const EngineSettings engines = testing::stick_contact();
-  LinearFem one_piece(r.mesh, r.materials, r.fixed, engines.fem);
-  // Grid nodes 14 and 15 are both sub-volumes' copies on x and y: the probe's centre is there.
-  const ProbeCollider probe =
-      ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(29.0, 29.0, 3.0 - 8.0), 8.0});
-  for (int f = 0; f < 10; ++f) one_piece.step(&probe, 1.0 / 60);
-  const double peak = max_norm(one_piece.displacements_mm());
-  ASSERT_GT(peak, 2.0);
-  double error[2] = {0.0, 0.0};
-  for (const int iterations : {0, 20}) {
-    StitchingSettings stitching{.sub_volumes = {2, 2, 1}};
-    stitching.fine_correction_iterations = iterations;
-    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engines, stitching,
-                            &jobs);
-    int first_frame_iterations = 0;
-    for (int f = 0; f < 10; ++f) {
-      stitched.step(&probe, 1.0 / 60);
-      if (f == 0) first_frame_iterations = stitched.last_stitch_stats().fine_iterations;
+  for (const EngineSettings& engines :
+       {ultrasim::testing::with_held_contact(HeldContactModel::kCoulombSlip, 0.0),
+        testing::stick_contact()}) {
+    const auto contact = engines.fem.contact.model == HeldContactModel::kStick ? "stick" : "slip";
+    LinearFem one_piece(r.mesh, r.materials, r.fixed, engines.fem);
+    // Grid nodes 14 and 15 are both sub-volumes' copies on x and y: the probe's centre is there.
+    const ProbeCollider probe =
+        ProbeCollider::sphere(SphereCollider{Eigen::Vector3d(29.0, 29.0, 3.0 - 8.0), 8.0});
+    for (int f = 0; f < 10; ++f) one_piece.step(&probe, 1.0 / 60);
+    const double peak = max_norm(one_piece.displacements_mm());
+    ASSERT_GT(peak, 2.0) << contact;
+    double error[2] = {0.0, 0.0};
+    for (const int iterations : {0, 20}) {
+      StitchingSettings stitching{.sub_volumes = {2, 2, 1}};
+      stitching.fine_correction_iterations = iterations;
+      StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engines, stitching,
+                              &jobs);
+      int first_frame_iterations = 0;
+      for (int f = 0; f < 10; ++f) {
+        stitched.step(&probe, 1.0 / 60);
+        if (f == 0) first_frame_iterations = stitched.last_stitch_stats().fine_iterations;
+      }
+      error[iterations > 0] =
+          max_norm(stitched.displacements_mm() - one_piece.displacements_mm()) / peak;
+      if (iterations > 0) {
+        // All of them at first; none once the tissue has settled (an imbalance under 1e-3 of
+        // the load), so a still probe costs nothing.
+        EXPECT_EQ(first_frame_iterations, iterations) << contact;
+        EXPECT_EQ(stitched.last_stitch_stats().fine_iterations, 0) << contact;
+      }
     }
-    error[iterations > 0] =
-        max_norm(stitched.displacements_mm() - one_piece.displacements_mm()) / peak;
-    if (iterations > 0) {
-      // All of them at first; none once the tissue has settled (an imbalance under 1e-3 of the
-      // load), so a still probe costs nothing.
-      EXPECT_EQ(first_frame_iterations, iterations);
-      EXPECT_EQ(stitched.last_stitch_stats().fine_iterations, 0);
-    }
+    EXPECT_LT(error[1], 0.02) << contact << ": fine correction " << error[1] << ", seams alone "
+                              << error[0];
+    EXPECT_GT(error[0], 0.05) << contact << ": seams alone " << error[0];
   }
-  EXPECT_LT(error[1], 0.02) << "fine correction: " << error[1] << ", seams alone: " << error[0];
-  EXPECT_GT(error[0], 0.05) << "seams alone: " << error[0];
 }
 
 }  // namespace

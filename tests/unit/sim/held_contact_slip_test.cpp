@@ -1,5 +1,7 @@
-// Coulomb's law for one held node (slide_held_node), on a linear face whose flat part is the plane
-// z = 2 (normal +z, into the tissue) and whose 2 mm rounded rim starts 4 mm from its centre.
+// Coulomb's law for one held node: as a slide between steps (slide_held_node), on a linear face
+// whose flat part is the plane z = 2 (normal +z, into the tissue) and whose 2 mm rounded rim starts
+// 4 mm from its centre; and as the choice between sticking and sliding against friction inside a
+// solve (coulomb_hold).
 
 #include <gtest/gtest.h>
 
@@ -76,6 +78,39 @@ TEST(HeldContactSlip, ANodePulledOffTheProbeOrWithoutAFiniteForceIsLeftWhereItIs
       slide_held_node(kFace, kOnFlatFace, Eigen::Vector3d(5, 0, -10), Eigen::Matrix3d::Zero(), 0.0)
           .point_mm,
       kOnFlatFace.point_mm);
+}
+
+TEST(CoulombHold, StickInsideTheFrictionConeSlideAgainstItsBoundOutside) {
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  // Pushed 10 mN, pulled 0.9 mN along: under 0.1 × 10, held in full.
+  EXPECT_FALSE(coulomb_hold(n, Eigen::Vector3d(0.9, 0, -10), 0.1).slides);
+  // Pulled 3 mN along (0.6, 0.8): slides against 1 mN, opposite the pull.
+  const HeldNodeLaw law = coulomb_hold(n, Eigen::Vector3d(1.8, 2.4, -10), 0.1);
+  EXPECT_TRUE(law.slides);
+  EXPECT_TRUE(law.friction_mn.isApprox(Eigen::Vector3d(-0.6, -0.8, 0)))
+      << law.friction_mn.transpose();
+  // On a tilted normal the friction lies in its tangent plane.
+  const Eigen::Vector3d tilted = Eigen::Vector3d(1, 0, 1).normalized();
+  const HeldNodeLaw on_rim = coulomb_hold(tilted, Eigen::Vector3d(0, 5, -10), 0.2);
+  EXPECT_TRUE(on_rim.slides);
+  EXPECT_NEAR(on_rim.friction_mn.dot(tilted), 0.0, 1e-12);
+  EXPECT_NEAR(on_rim.friction_mn.norm(), 0.2 * 10 / std::sqrt(2.0), 1e-12);
+}
+
+TEST(CoulombHold, FrictionlessOrPulledOffItSlidesFreelyAndANonFiniteForceSticks) {
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  for (const Eigen::Vector3d& force :
+       {Eigen::Vector3d(0, 0, -10), Eigen::Vector3d(3, 0, -10), Eigen::Vector3d(3, 0, 2)}) {
+    const HeldNodeLaw frictionless = coulomb_hold(n, force, 0.0);
+    EXPECT_TRUE(frictionless.slides) << force.transpose();
+    EXPECT_EQ(frictionless.friction_mn, Eigen::Vector3d::Zero());
+  }
+  // Pulled off the probe (the engine lets go of it next): nothing to hold it along the surface.
+  const HeldNodeLaw pulled_off = coulomb_hold(n, Eigen::Vector3d(3, 0, 2), 0.5);
+  EXPECT_TRUE(pulled_off.slides);
+  EXPECT_EQ(pulled_off.friction_mn, Eigen::Vector3d::Zero());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(coulomb_hold(n, Eigen::Vector3d(nan, 0, -10), 0.0).slides);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include "block_fixture.hpp"
 #include "engine_settings.hpp"
+#include "sliding_reference.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 
@@ -138,6 +139,51 @@ TEST(LinearFem, SphereColliderPushesNodesOutAndForceGrowsWithDepth) {
   // (Within a micrometre: it slides a little along the sphere, the block's mesh not being
   // symmetric about the probe's axis.)
   EXPECT_NEAR(fem.displacement_mm(top_centre).z(), 4.0, 1e-3);
+}
+
+// Coulomb slip solved inside the CG: the held nodes that slide are held along the sphere's normal
+// only (each its own) and the converged answer is the frame's equilibrium with them free in their
+// tangent planes (against friction where it slides with some), as a fresh factorisation of that
+// reduced problem gives it.
+TEST(LinearFem, SlidingNodesSettleInTheirTangentPlanesAsTheReducedProblemSays) {
+  for (const double mu : {0.0, 0.1}) {
+    Block b = make_block(30.0, 0.45, {17, 9, 9});
+    FemSettings settings = pcg_settings(20, 1e-13);
+    settings.contact = {HeldContactModel::kCoulombSlip, mu};
+    LinearFem fem(b.mesh, b.materials, b.fixed, settings);
+    // Pressed, then moved 1.5 mm along x: the tissue pulls the held nodes back along the sphere.
+    for (int frame = 0; frame < 5; ++frame) {
+      fem.step(SphereCollider::behind_face({frame < 3 ? 0.0 : 1.5, 0, 3}, {0, 0, 1}, 15.0));
+    }
+    int sliding = 0, with_friction = 0, stuck = 0;
+    for (int n = 0; n < fem.node_count(); ++n) {
+      const auto* hold = fem.sliding_hold(n);
+      sliding += hold != nullptr;
+      with_friction += hold != nullptr && hold->friction_mn.norm() > 0.0;
+      stuck += hold == nullptr && fem.holds_node(n) && !b.fixed[n];
+    }
+    ASSERT_GT(sliding, 3) << "mu " << mu;
+    if (mu == 0.0) {
+      EXPECT_EQ(stuck, 0);
+      EXPECT_EQ(with_friction, 0);
+    } else {
+      EXPECT_GT(with_friction, 0);
+    }
+    const Eigen::VectorXd expected = testing::constrained_equilibrium(fem);
+    const FemStepStats solved = fem.solve_to_tolerance(1e-13, 20000);
+    EXPECT_LT(solved.relative_residual, 1e-13) << "mu " << mu;
+    const double peak = expected.cwiseAbs().maxCoeff();
+    ASSERT_GT(peak, 2.0);
+    EXPECT_LT((fem.displacements_mm() - expected).cwiseAbs().maxCoeff(), 1e-8 * peak)
+        << "mu " << mu;
+    // What slid stayed on its tangent plane: the normal component is where the contact put it.
+    for (int n = 0; n < fem.node_count(); ++n) {
+      const auto* hold = fem.sliding_hold(n);
+      if (hold == nullptr) continue;
+      EXPECT_NEAR(fem.displacement_mm(n).dot(hold->normal),
+                  expected.segment<3>(3 * n).dot(hold->normal), 1e-9);
+    }
+  }
 }
 
 TEST(LinearFem, WarmStartedFramesConvergeToTheExactAnswer) {

@@ -266,13 +266,23 @@ PcgAcrossTheSeam press_pcg_across_the_seam(EngineSettings engines, int frames) {
           std::string(stitched.name())};
 }
 
+// Under the published stick contact and the default frictionless Coulomb slip (the sliding nodes
+// solved inside the sub-volumes' CG, as one piece's): 300 frames of a still probe, the seams alone
+// (measured: 1.8 % of the peak under the slip; under the slip solved between steps it had been
+// 4 % after 200 frames and 0.4 % after 600).
 TEST(StitchedVolume, PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses) {
-  const PcgAcrossTheSeam p = press_pcg_across_the_seam(testing::stick_contact(), 300);
-  ASSERT_GT(p.peak_mm, 1.5);
-  EXPECT_LT(p.error_mm, 0.02 * p.peak_mm) << "error " << p.error_mm << " mm of " << p.peak_mm;
-  EXPECT_LT(p.stats.max_gap_mm, 0.1);
-  EXPECT_GT(p.stats.max_seam_force_mn, 0.0);
-  EXPECT_EQ(p.name, "stitched PCG FEM (published) (2 sub-volumes)");
+  for (const EngineSettings& engines :
+       {testing::stick_contact(),
+        ultrasim::testing::with_held_contact(HeldContactModel::kCoulombSlip, 0.0)}) {
+    const PcgAcrossTheSeam p = press_pcg_across_the_seam(engines, 300);
+    const auto contact = engines.fem.contact.model == HeldContactModel::kStick ? "stick" : "slip";
+    ASSERT_GT(p.peak_mm, 1.5) << contact;
+    EXPECT_LT(p.error_mm, 0.02 * p.peak_mm)
+        << contact << ": error " << p.error_mm << " mm of " << p.peak_mm;
+    EXPECT_LT(p.stats.max_gap_mm, 0.1) << contact;
+    EXPECT_GT(p.stats.max_seam_force_mn, 0.0) << contact;
+    EXPECT_EQ(p.name, "stitched PCG FEM (published) (2 sub-volumes)");
+  }
 }
 
 TEST(StitchedVolume, ImplicitMsdsMatchesOnePieceAtRestUnderAStillProbe) {
@@ -292,17 +302,6 @@ TEST(StitchedVolume, ImplicitMsdsMatchesOnePieceAtRestUnderAStillProbe) {
   const double error = max_difference(stitched.displacements_mm(), one_piece.displacements_mm());
   EXPECT_LT(error, 0.02 * peak) << "error " << error << " mm of " << peak;
   EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 0.1);
-}
-
-// Without friction a still probe has one answer, and the stitched PCG FEM's Coulomb slip reaches
-// one piece's: more slowly than the stick contact's fixed holds (a slide a step, the seams a frame
-// apart), 0.4 % of the peak after 600 frames (4 % after 200, 0.9 % after 400).
-TEST(StitchedVolume, FrictionlessSlipSettlesWhereOnePieceDoes) {
-  const PcgAcrossTheSeam p = press_pcg_across_the_seam(
-      ultrasim::testing::with_held_contact(HeldContactModel::kCoulombSlip, 0.0), 600);
-  ASSERT_GT(p.peak_mm, 1.5);
-  EXPECT_LT(p.error_mm, 0.01 * p.peak_mm) << "error " << p.error_mm << " mm of " << p.peak_mm;
-  EXPECT_LT(p.stats.max_gap_mm, 0.1);
 }
 
 // The kiosk's probe face, pressed 2 mm deep and swept across the seam and back with a slight

@@ -131,6 +131,16 @@ class DeformationEngine {
   virtual bool holds_node(int /*node*/) const {
     throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
+  // A node the probe holds along its normal only, free to slide in the tangent plane against
+  // `friction_mn` (the PCG FEM's Coulomb slip, solved inside its CG): a correction moves it in
+  // that plane and counts the friction in its balance. Null for any other node (free, fixed,
+  // held in all three axes) and for methods that slide their nodes between steps. Valid until
+  // the next step.
+  struct SlidingHold {
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d friction_mn = Eigen::Vector3d::Zero();
+  };
+  virtual const SlidingHold* sliding_hold(int /*node*/) const { return nullptr; }
   // Moves a node the probe holds (holds_node() and not fixed) to `position_mm` (finite), where
   // the next step's contact test takes it up again; any other node is left where it is. A
   // stitched volume puts the copies of a seam node that the probe holds in several sub-volumes
@@ -138,7 +148,8 @@ class DeformationEngine {
   virtual void move_held_node_mm(int /*node*/, const Eigen::Vector3d& /*position_mm*/) {
     throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
-  // Moves every node neither fixed nor held by `du_mm` (3 × node count entries, finite), keeping
+  // Moves every node neither fixed nor held by `du_mm`, and each sliding one (sliding_hold()) by
+  // its part in the tangent plane (3 × node count entries, finite), keeping
   // the contacts and, for the MSDS, the velocities: a correction between frames, not a new start.
   // Does not allocate.
   virtual void displace_free_nodes_mm(const Eigen::VectorXd& /*du_mm*/) {

@@ -20,7 +20,9 @@ namespace ultrasim::sim {
 // K and f the stepped sub-volumes' rest stiffnesses and elastic forces summed over the copies of
 // each grid node (the overlap's stiffness split among its copies makes them add up to one
 // piece's), D the grid nodes that are neither fixed nor held by the probe in any copy and whose
-// every copy stepped (the rest stay where the frame left them), and adds Δu to every copy. For
+// every copy stepped (the rest stay where the frame left them), and adds Δu to every copy. A node
+// the probe holds along its normal only in some copy (DeformationEngine::sliding_hold) and in no
+// copy in full moves in its tangent plane, its friction counted in f (a filtered CG). For
 // the linear (PCG) FEM it is the one-piece solve's own step from the stitched shape; for the
 // MSDS the stiffness is linearised about rest, and the step is quasi-static: it moves the tissue
 // toward equilibrium, not along the one piece's damped motion.
@@ -65,6 +67,10 @@ class FineCorrection {
   // out = Σ over each grid node's copies of the sub-volumes' local_out (free_only: over the free
   // nodes, 0 elsewhere).
   void gather(Eigen::VectorXd& out, bool free_only) const;
+  // Zeroes the normal component of `v` at the sliding grid nodes.
+  void constrain_sliding(Eigen::VectorXd& v) const;
+
+  static constexpr std::uint8_t kHeld = 0, kFree = 1, kSliding = 2;
 
   std::vector<Sub> subs_;
   std::vector<int> copies_begin_;  // per grid node, its copies (CSR)
@@ -72,7 +78,9 @@ class FineCorrection {
   std::vector<std::uint8_t> fixed_;
   Eigen::VectorXd inverse_diagonal_;  // of the summed stiffness, per grid DOF
   // Per frame, sized once.
-  std::vector<std::uint8_t> free_;
+  std::vector<std::uint8_t> free_;             // kHeld, kFree or kSliding
+  std::vector<Eigen::Vector3d> slide_normal_;  // where kSliding
+  std::vector<int> sliding_;
   std::vector<std::uint8_t> stepped_;  // per sub-volume
   std::vector<int> stepped_list_;
   Eigen::VectorXd x_, r_, z_, p_, q_;

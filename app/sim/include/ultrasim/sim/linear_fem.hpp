@@ -28,8 +28,11 @@ struct FemStepStats {
 
 // Quasi-static linear FEM as published: isotropic linear elasticity, Cauchy (small) strain,
 // linear tetrahedra, solved by Jacobi-preconditioned conjugate gradients with a fixed iteration
-// budget per frame, warm-started from the previous frame. Nodes inside the probe collider and
-// fixed nodes are Dirichlet constraints; CG runs on the free degrees of freedom only.
+// budget per frame, warm-started from the previous frame. Fixed nodes and the nodes the probe
+// holds are Dirichlet constraints; CG runs on the free degrees of freedom only. Under the default
+// Coulomb slip contact (HeldContactSettings) a held node that slides is held along the probe's
+// normal only and slides in the tangent plane inside the CG (a filtered CG, as the exact FEM's
+// tangent-plane rows), so a still probe's patch settles with the rest of the tissue.
 //
 // Units: positions mm, moduli kPa, so K u is in mN. With a job system, each CG product runs in
 // row bands on its threads (the rest of a step on the caller); step() does not allocate.
@@ -81,6 +84,9 @@ class LinearFem final : public DeformationEngine {
   bool holds_node(int node) const override {
     return fixed_[node] != 0 || prescribed_[node] != 0 || in_contact_[node] != 0;
   }
+  const SlidingHold* sliding_hold(int node) const override {
+    return slides_[node] ? &sliding_hold_[node] : nullptr;
+  }
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
   void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
@@ -105,10 +111,13 @@ class LinearFem final : public DeformationEngine {
  private:
   FemStepStats step_probe(const ProbeCollider* probe, const StepBudget& may_continue);
   void apply_collider(const ProbeCollider* collider);
-  // HeldContactModel::kCoulombSlip: a held node slides along the probe (slide_held_node).
-  void slide_along_probe(const ProbeCollider& collider, int node);
-  // The node's own 3 × 3 block of K + A, mN/mm.
-  Eigen::Matrix3d node_stiffness_block(int node) const;
+  // No held node slides (until the next apply_collider()).
+  void stop_sliding();
+  // S: zeroes what the constraints hold in `v` (per node: all of a fixed, prescribed or stuck
+  // node; the probe's normal component of a sliding one). Does not allocate.
+  void constrain(Eigen::VectorXd& v) const;
+  // forces_mn += the loads: the anchor springs' pull and the friction on sliding nodes.
+  void add_loads(Eigen::VectorXd& forces_mn) const;
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();
@@ -126,6 +135,11 @@ class LinearFem final : public DeformationEngine {
   std::vector<std::uint8_t> only_held_by_adhesion_;  // touching, not inside: may be let go
   std::vector<Eigen::Vector3d> u_before_contact_;    // where a let-go node returns to
   std::vector<Eigen::Vector3d> contact_normal_;      // probe's outward normal at each contact
+  // HeldContactModel::kCoulombSlip: the held nodes that slide this frame, held along the probe's
+  // normal only, inside the CG (coulomb_hold()). Capacity: every node.
+  std::vector<int> sliding_nodes_;
+  std::vector<SlidingHold> sliding_hold_;  // per node, valid where slides_ is set
+  std::vector<std::uint8_t> slides_;
   std::vector<std::array<std::int32_t, 4>> tets_;
   Eigen::VectorXd last_good_u_;
   int fixed_count_ = 0;

@@ -36,9 +36,10 @@ enum class HeldContactModel {
   // (docs/accuracy.md, "A sliding probe").
   kStick,
   // Coulomb friction: a held node whose tissue pulls it along the probe's surface harder than
-  // friction_coefficient × its push slides along the surface, each step, to where the pull is
-  // down to that bound (its neighbours as they are); the rest stick. 0: frictionless, as the
-  // exact FEM's contact.
+  // friction_coefficient × its push slides along the surface; the rest stick. 0: frictionless, as
+  // the exact FEM's contact. The PCG FEM solves the slide inside its CG (held along the probe's
+  // normal only, against a friction force of that bound: a still probe's patch settles with the
+  // tissue); the MSDS slides each node a step at a time to where its pull is down to the bound.
   kCoulombSlip,
 };
 
