@@ -1,5 +1,6 @@
 // The price of stitching and of skipping sub-volumes, as CSVs for the chart (docs/accuracy.md):
 //   build/ci/tests/bench/stitch_price --out DIR [--quick] [--variant NAME] [--path-only]
+//                                    [--contact stick|slip]
 //   /usr/bin/python3 scripts/plot_engines.py --stitching DIR --out docs/images
 // writes DIR/stitch-frames.csv, DIR/stitch-stiffness.csv and DIR/stitch-path.csv.
 //
@@ -24,6 +25,8 @@
 //              lowered over 4 frames instead of at once, 10 and 199 frames after it stops. The
 //              stick contact makes the answer depend on the way in; this is the floor under any
 //              stitched-against-one-piece error (--path-only: this study alone, ~40 s).
+// Under the published stick contact unless --contact slip asks for the default frictionless
+// Coulomb slip (engine_settings.hpp says why the figures are stick's).
 // A study, not a benchmark: nothing is timed and nothing here asserts (stitched_volume_test
 // does). Takes a few minutes.
 
@@ -55,7 +58,9 @@ constexpr double kCornerMm = 61.0;
 
 using bench::max_norm;
 using bench::Region;
-using bench::stick_contact;
+// The PCG FEM's and the MSDS's held contact for every engine here (main() sets it).
+sim::EngineSettings g_contact = bench::stick_contact();
+const sim::EngineSettings& held_contact() { return g_contact; }
 
 sim::ProbeCollider placed_probe() {
   return bench::sphere_probe(kCornerMm, kCornerMm, 4.0);
@@ -108,7 +113,7 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
     const char* scenario = placed ? "placed" : "pressed";
     for (auto method : kMethods) {
       auto one_piece =
-          sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
+          sim::make_engine(method, r.mesh, r.materials, r.fixed, held_contact(), {}, &jobs);
       std::vector<Eigen::VectorXd> reference;
       for (int f = 0; f < total; ++f) {
         const auto probe = probe_for(f);
@@ -124,7 +129,7 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
         stitching.exchanges_per_frame = v.exchanges_per_frame;
         stitching.coarse_correction = v.coarse_correction;
         stitching.fine_correction_iterations = v.fine_correction_iterations;
-        sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, stick_contact(),
+        sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, held_contact(),
                                      stitching, &jobs);
         double error_at_10 = 0.0;
         for (int f = 0; f < total; ++f) {
@@ -163,7 +168,7 @@ void path_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
   constexpr Path kPaths[] = {{"offset-0.01mm", 0.01, 1}, {"lowered-over-4-frames", 0.0, 4}};
   for (auto method : kMethods) {
     auto reference =
-        sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
+        sim::make_engine(method, r.mesh, r.materials, r.fixed, held_contact(), {}, &jobs);
     std::vector<Eigen::VectorXd> placed;
     for (int f = 0; f < kPlacedFrames; ++f) {
       const auto probe = placed_probe();
@@ -172,7 +177,7 @@ void path_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) {
     }
     for (const Path& p : kPaths) {
       auto other =
-          sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
+          sim::make_engine(method, r.mesh, r.materials, r.fixed, held_contact(), {}, &jobs);
       for (int f = 0; f < kPlacedFrames + p.lowering_frames - 1; ++f) {
         const double depth = 4.0 * std::min(1.0, (f + 1.0) / p.lowering_frames);
         const auto probe = bench::sphere_probe(kCornerMm + p.offset_mm, kCornerMm, depth);
@@ -195,14 +200,14 @@ void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) 
   const auto probe = placed_probe();
   for (auto method : kMethods) {
     auto one_piece =
-        sim::make_engine(method, r.mesh, r.materials, r.fixed, stick_contact(), {}, &jobs);
+        sim::make_engine(method, r.mesh, r.materials, r.fixed, held_contact(), {}, &jobs);
     for (int f = 0; f < kPlacedFrames; ++f) one_piece->step(&probe, kFrameDtS);
     for (double k : {1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0}) {
       sim::StitchingSettings stitching;
       stitching.sub_volumes = {5, 5, 1};
       stitching.selective = false;
       stitching.spring_stiffness_per_modulus_mm = k;
-      sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, stick_contact(), stitching,
+      sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, held_contact(), stitching,
                                    &jobs);
       for (int f = 0; f < kPlacedFrames; ++f) stitched.step(&probe, kFrameDtS);
       const double error = max_norm(stitched.displacements_mm() - one_piece->displacements_mm()) /
@@ -224,6 +229,14 @@ int main(int argc, char** argv) {
   bool quick = false;
   bool path_only = false;
   for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--contact") == 0 && i + 1 < argc) {
+      if (std::strcmp(argv[i + 1], "slip") == 0) {
+        g_contact = testing::with_held_contact(sim::HeldContactModel::kCoulombSlip, 0.0);
+      } else if (std::strcmp(argv[i + 1], "stick") != 0) {
+        std::fprintf(stderr, "stitch_price: --contact takes stick or slip, not %s\n", argv[i + 1]);
+        return 2;
+      }
+    }
     if (std::strcmp(argv[i], "--out") == 0 && i + 1 < argc) dir = argv[i + 1];
     if (std::strcmp(argv[i], "--variant") == 0 && i + 1 < argc) only = argv[i + 1];
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
@@ -231,7 +244,8 @@ int main(int argc, char** argv) {
   }
   if (dir.empty()) {
     std::fprintf(stderr,
-                 "usage: stitch_price --out DIR [--quick] [--variant NAME] [--path-only]\n");
+                 "usage: stitch_price --out DIR [--quick] [--variant NAME] [--path-only] "
+                 "[--contact stick|slip]\n");
     return 2;
   }
   const Region r = bench::make_region(kSide, kDepth);
