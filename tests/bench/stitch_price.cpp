@@ -60,7 +60,9 @@ using bench::max_norm;
 using bench::Region;
 // The PCG FEM's and the MSDS's held contact for every engine here (main() sets it).
 sim::EngineSettings g_contact = bench::stick_contact();
-const sim::EngineSettings& held_contact() { return g_contact; }
+const sim::EngineSettings& held_contact() {
+  return g_contact;
+}
 
 sim::ProbeCollider placed_probe() {
   return bench::sphere_probe(kCornerMm, kCornerMm, 4.0);
