@@ -258,6 +258,10 @@ void LinearFem::stop_sliding() {
 
 void LinearFem::constrain(Eigen::VectorXd& v) const {
   v.array() *= free_mask_.array();
+  project_sliding(v);
+}
+
+void LinearFem::project_sliding(Eigen::VectorXd& v) const {
   for (int node : sliding_nodes_) {
     auto d = v.segment<3>(3 * node);
     d -= d.dot(sliding_hold_[node].normal) * sliding_hold_[node].normal;
@@ -288,7 +292,7 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
   // against where this frame started instead.
   const double reference = std::max({rhs_norm, r_.norm(), 1e-30});
   z_ = inverse_diagonal_.cwiseProduct(r_);
-  constrain(z_);
+  project_sliding(z_);
   p_ = z_;
   double rz = r_.dot(z_);
   double residual = r_.norm();
@@ -301,7 +305,8 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
     system_times(p_, q_);
     constrain(q_);
     // Converged to rounding or the system lost definiteness: stop.
-    const auto filter = [this](Eigen::VectorXd& v) { constrain(v); };
+    // r is constrained, so M⁻¹ r is zero where the mask is: only the sliding nodes need S.
+    const auto filter = [this](Eigen::VectorXd& v) { project_sliding(v); };
     if (!jacobi_cg_update(inverse_diagonal_, q_, u_, r_, z_, p_, rz, filter)) break;
     residual = r_.norm();
     ++it;

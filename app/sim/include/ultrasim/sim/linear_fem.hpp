@@ -116,6 +116,8 @@ class LinearFem final : public DeformationEngine {
   // S: zeroes what the constraints hold in `v` (per node: all of a fixed, prescribed or stuck
   // node; the probe's normal component of a sliding one). Does not allocate.
   void constrain(Eigen::VectorXd& v) const;
+  // The sliding nodes' part of S alone: their normal components zeroed.
+  void project_sliding(Eigen::VectorXd& v) const;
   // forces_mn += the loads: the anchor springs' pull and the friction on sliding nodes.
   void add_loads(Eigen::VectorXd& forces_mn) const;
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
