@@ -333,7 +333,15 @@ double LinearFem::update_contact_forces() {
     if (!in_contact_[node]) continue;
     const Eigen::Vector3d force = nodal_force_mn(node);
     contact_push_mn_[node] = force.dot(contact_normal_[node]);
-    total_mn += force;
+    if (slides_[node]) {
+      // The probe holds a sliding node along its normal and rubs it with the friction: what K u
+      // has besides is the CG's unfinished imbalance, not a force the probe exerts (the same at
+      // convergence).
+      const SlidingHold& hold = sliding_hold_[node];
+      total_mn += force.dot(hold.normal) * hold.normal + hold.friction_mn;
+    } else {
+      total_mn += force;
+    }
   }
   return total_mn.norm() / 1000.0;
 }

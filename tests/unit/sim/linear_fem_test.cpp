@@ -186,6 +186,34 @@ TEST(LinearFem, SlidingNodesSettleInTheirTangentPlanesAsTheReducedProblemSays) {
   }
 }
 
+// A frictionless probe pushes a node it holds along its normal only: a frame cut short leaves the
+// sliding nodes' K u with a part along the face (the CG's unfinished imbalance), which the
+// reported force leaves out. A flat face pressed straight down: the force is |Σ (K u)_z|.
+TEST(LinearFem, AFrictionlessFaceReportsItsPushAlongItsNormalOnly) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, pcg_settings(2, 1e-12));
+  // 9 × 14 mm, 1 mm rim, off the block's middle: it catches the nodes at x = 0 and 5 mm under
+  // its flat part, whose imbalances along x do not cancel.
+  const ProbeCollider face = ProbeCollider::linear_face(
+      Eigen::Vector3d(2.5, 0.0, 1.0), Eigen::Quaterniond::Identity(), 9.0, 14.0, 1.0);
+  EngineStepStats stats;
+  for (int frame = 0; frame < 3; ++frame) stats = fem.step(&face, 1.0 / 60);
+  int sliding = 0;
+  Eigen::Vector3d total_mn = Eigen::Vector3d::Zero();
+  for (int n = 0; n < fem.node_count(); ++n) {
+    if (fem.sliding_hold(n) == nullptr) continue;
+    ++sliding;
+    EXPECT_TRUE(fem.sliding_hold(n)->normal.isApprox(Eigen::Vector3d::UnitZ()));
+    total_mn += fem.nodal_force_mn(n);
+  }
+  ASSERT_GE(sliding, 3);
+  ASSERT_EQ(stats.contact_nodes, sliding);
+  EXPECT_GT(std::abs(total_mn.x()), 1e-3 * std::abs(total_mn.z()))
+      << "two iterations a frame leave an imbalance along the face";
+  EXPECT_NEAR(stats.contact_force_n, std::abs(total_mn.z()) / 1000.0,
+              1e-12 * std::abs(total_mn.z()));
+}
+
 TEST(LinearFem, WarmStartedFramesConvergeToTheExactAnswer) {
   Block b = make_block();
   LinearFem fem(b.mesh, b.materials, b.fixed, pcg_settings(20, 1e-12));
