@@ -72,7 +72,8 @@ TableSchema<imaging::BscanSettings> bscan_schema() {
   return t;
 }
 
-// The PCG FEM's and the MSDS's probe contact: the same keys in [fem] and [msds].
+// The PCG FEM's, the corotational FEM's and the MSDS's probe contact: the same keys in [fem],
+// [corotational] and [msds].
 template <typename S>
 void add_held_contact_fields(TableSchema<S>& t) {
   using H = sim::HeldContactSettings;
@@ -199,6 +200,7 @@ TableSchema<sim::CorotationalSettings> corotational_schema() {
   t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
               "Above this fraction of inverted tets a frame is cut short along its update (a "
               "few folded under the probe's rim are accepted)."));
+  add_held_contact_fields(t);
   return t;
 }
 

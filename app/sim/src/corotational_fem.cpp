@@ -138,6 +138,7 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
     throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
+  check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
 
@@ -147,10 +148,14 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   held_.assign(n, 0);
   contact_push_mn_.assign(n, 0.0);
   contacts_.reserve(n);  // every node at most once: step() never grows it
+  slides_.assign(n, 0);
+  sliding_hold_.resize(n);
+  sliding_nodes_.reserve(n);
   prescribed_.assign(n, 0);
   prescribed_u_.assign(n, Eigen::Vector3d::Zero());
   deformed_ = rest_;
   chunk_sums_.assign(std::max(tet_chunks(), node_chunks()), Eigen::Vector4d::Zero());
+  chunk_slides_.assign(node_chunks(), 0);
 
   // At rest every rotation is the identity: K_R is LinearFem's stiffness and the rhs is zero.
   rotation_.assign(tets_.size(), Eigen::Matrix3d::Identity());
@@ -335,11 +340,13 @@ void CorotationalFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   }
   // The contacts belonged to the old shape; the next step finds them on this one.
   contacts_.clear();
+  stop_sliding();
   std::fill(contact_push_mn_.begin(), contact_push_mn_.end(), 0.0);
   update_deformed();
 }
 
 void CorotationalFem::apply_constraints(const ProbeCollider* probe) {
+  stop_sliding();
   if (probe == nullptr) {
     contacts_.clear();
     hold_constrained_nodes();
@@ -357,6 +364,33 @@ void CorotationalFem::apply_constraints(const ProbeCollider* probe) {
   add_followers(*probe);
   hold_constrained_nodes();
   let_go_of_followers_that_would_pull(first_follower);
+  if (settings_.contact.model == HeldContactModel::kCoulombSlip) choose_sliding_nodes();
+}
+
+void CorotationalFem::stop_sliding() {
+  for (int node : sliding_nodes_) slides_[node] = 0;
+  sliding_nodes_.clear();
+  std::fill(chunk_slides_.begin(), chunk_slides_.end(), 0);
+}
+
+void CorotationalFem::choose_sliding_nodes() {
+  // As the PCG FEM's (coulomb_hold), with last frame's warped stiffness: a node that slides is
+  // held along the probe's normal only, in the CG below.
+  for (const NodeContact& c : contacts_) {
+    const HeldNodeLaw law =
+        coulomb_hold(c.normal, -node_force_mn(c.node), settings_.contact.friction_coefficient);
+    if (!law.slides) continue;
+    slides_[c.node] = 1;
+    sliding_hold_[c.node] = {c.normal, law.friction_mn};
+    sliding_nodes_.push_back(c.node);
+    chunk_slides_[c.node / kNodesPerChunk] = 1;
+    held_[c.node] = 0;
+  }
+}
+
+void CorotationalFem::project_sliding(int node, Eigen::Ref<Eigen::Vector3d> v) const {
+  const Eigen::Vector3d& n = sliding_hold_[node].normal;
+  v -= v.dot(n) * n;
 }
 
 void CorotationalFem::add_followers(const ProbeCollider& probe) {
@@ -408,7 +442,7 @@ void CorotationalFem::hold_constrained_nodes() {
     if (prescribed_[node]) u_.segment<3>(3 * node) = prescribed_u_[node];
   }
   for (const auto& c : contacts_) {
-    held_[c.node] = 1;
+    held_[c.node] = slides_[c.node] ? 0 : 1;
     u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
   }
 }
@@ -500,9 +534,16 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         if (held_[block_col_[k]]) ku_held += term;
       }
       const Eigen::Vector3d b = rhs_.segment<3>(3 * node);
-      const Eigen::Vector3d r = b - ku;
+      Eigen::Vector3d r = b - ku;
       const Eigen::Vector3d free_rhs = b - ku_held;
-      const Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+      Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+      if (slides_[node]) {
+        // Filtered: the node moves in the probe's tangent plane against its friction.
+        r += sliding_hold_[node].friction_mn;
+        project_sliding(node, r);
+        z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+        project_sliding(node, z);
+      }
       r_.segment<3>(3 * node) = r;
       z_.segment<3>(3 * node) = z;
       p_.segment<3>(3 * node) = z;
@@ -536,6 +577,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
           kp.noalias() += block_value_[k].lazyProduct(p_.segment<3>(3 * block_col_[k]));
         }
+        if (slides_[node]) project_sliding(node, kp);
         q_.segment<3>(3 * node) = kp;
         pq += p_.segment<3>(3 * node).dot(kp);
       }
@@ -551,6 +593,11 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
       u_.segment(lo, len) += alpha * p_.segment(lo, len);
       r_.segment(lo, len) -= alpha * q_.segment(lo, len);
       z_.segment(lo, len) = inverse_diagonal_.segment(lo, len).cwiseProduct(r_.segment(lo, len));
+      if (chunk_slides_[chunk]) {
+        for (int node = begin; node < end; ++node) {
+          if (slides_[node]) project_sliding(node, z_.segment<3>(3 * node));
+        }
+      }
       chunk_sums_[chunk] = Eigen::Vector4d(r_.segment(lo, len).dot(z_.segment(lo, len)),
                                            r_.segment(lo, len).squaredNorm(), 0.0, 0.0);
     });
@@ -599,7 +646,11 @@ double CorotationalFem::measure_contact_forces() {
   for (const auto& c : contacts_) {
     const Eigen::Vector3d force_mn = node_force_mn(c.node);
     contact_push_mn_[c.node] = force_mn.dot(c.normal);
-    total_mn += force_mn;
+    // A sliding node: its push and friction only (LinearFem::update_contact_forces says why).
+    total_mn +=
+        slides_[c.node]
+            ? Eigen::Vector3d(force_mn.dot(c.normal) * c.normal + sliding_hold_[c.node].friction_mn)
+            : force_mn;
   }
   return total_mn.norm() / 1000.0;
 }

@@ -46,6 +46,9 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.corotational.pcg_iterations_per_frame, b.corotational.pcg_iterations_per_frame);
   EXPECT_EQ(a.corotational.relative_tolerance, b.corotational.relative_tolerance);
   EXPECT_EQ(a.corotational.max_inverted_fraction, b.corotational.max_inverted_fraction);
+  EXPECT_EQ(a.corotational.contact.model, b.corotational.contact.model);
+  EXPECT_EQ(a.corotational.contact.friction_coefficient,
+            b.corotational.contact.friction_coefficient);
   EXPECT_EQ(a.collider.radius_mm, b.collider.radius_mm);
   EXPECT_EQ(a.stitching.spring_stiffness_per_modulus_mm,
             b.stitching.spring_stiffness_per_modulus_mm);
@@ -146,6 +149,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.fem.relative_tolerance = 0.1 + 0.2;  // not exactly representable in short decimal
   changed.corotational.pcg_iterations_per_frame = 33;
   changed.corotational.max_inverted_fraction = 0.0125;
+  changed.corotational.contact = {sim::HeldContactModel::kStick, 0.3};
   changed.collider.radius_mm = 12.5;
   changed.stitching.spring_stiffness_per_modulus_mm = 7.5;
   changed.stitching.split_overlap_stiffness = false;

@@ -74,8 +74,10 @@ SlideFigures slide(EngineKind kind, const testing::SlabRegion& r,
   }
   out.force_after_n = s.contact_force_n;
   out.largest_move_after_mm = max_norm(engine->displacements_mm());
-  const HeldContactSettings& held =
-      kind == EngineKind::kPcgFem ? settings.fem.contact : settings.msds.contact;
+  const HeldContactSettings& held = kind == EngineKind::kPcgFem ? settings.fem.contact
+                                    : kind == EngineKind::kCorotationalFem
+                                        ? settings.corotational.contact
+                                        : settings.msds.contact;
   std::printf("%-14s %-13s force %.2f -> %.2f N, largest move %.2f -> %.2f mm%s\n",
               std::string(engine_key(kind)).c_str(),
               kind == EngineKind::kExactFem            ? "frictionless"
@@ -98,8 +100,8 @@ TEST(SlidingProbe, TheFrictionlessExactFemPressesAsHardWhereverTheFaceStops) {
       << "the skin slid under the face, not along with it";
 }
 
-constexpr EngineKind kHeldContactMethods[] = {EngineKind::kPcgFem, EngineKind::kMsdsExplicit,
-                                              EngineKind::kMsdsImplicit};
+constexpr EngineKind kHeldContactMethods[] = {EngineKind::kPcgFem, EngineKind::kCorotationalFem,
+                                              EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit};
 
 TEST(SlidingProbe, FrictionlessSlipPressesAsHardWhereverTheFaceStops) {
   const testing::SlabRegion r = homogeneous_slab();

@@ -141,6 +141,12 @@ class CorotationalFem final : public DeformationEngine {
   void add_followers(const ProbeCollider& probe);
   // Drops the followers (contacts_ from first_follower on) that holding would need a pull for.
   void let_go_of_followers_that_would_pull(int first_follower);
+  // HeldContactModel::kCoulombSlip: marks the contacts that slide this frame (coulomb_hold()),
+  // held along the probe's normal only; stop_sliding() forgets last frame's.
+  void choose_sliding_nodes();
+  void stop_sliding();
+  // v minus its part along a sliding node's normal.
+  void project_sliding(int node, Eigen::Ref<Eigen::Vector3d> v) const;
   // K_R u − b at a node with the last assembly: the force holding it there, mN.
   Eigen::Vector3d node_force_mn(int node) const;
   // Marks fixed, prescribed and contact nodes held and puts them at their displacements.
@@ -214,6 +220,12 @@ class CorotationalFem final : public DeformationEngine {
   Eigen::VectorXd load_mn_;  // dead nodal loads, node-major
   std::vector<NodeContact> contacts_;
   std::vector<double> contact_push_mn_;  // per node: last frame's push along the probe's normal
+  // The contacts that slide this frame: per node a flag and (where set) normal and friction; the
+  // list; per node chunk, whether it holds one.
+  std::vector<std::uint8_t> slides_;
+  std::vector<SlidingHold> sliding_hold_;
+  std::vector<int> sliding_nodes_;
+  std::vector<std::uint8_t> chunk_slides_;
   std::vector<Eigen::Vector3d> deformed_;
   // Per chunk partial sums of a pass (dot products, counts), combined by sum_chunks().
   mutable std::vector<Eigen::Vector4d> chunk_sums_;

@@ -28,8 +28,8 @@ enum class MaterialMixing {
   kReuss,
 };
 
-// How the PCG FEM's and the MSDS's probe holds a node it catches (the exact FEM has its own
-// ContactModel).
+// How the PCG FEM's, the corotational FEM's and the MSDS's probe holds a node it catches (the
+// exact FEM has its own ContactModel).
 enum class HeldContactModel {
   // The published collider: a caught node is held at its push-out point in all three axes for the
   // step. A probe sliding along the skin drags the skin along and ploughs the tissue ahead of it
@@ -37,7 +37,8 @@ enum class HeldContactModel {
   kStick,
   // Coulomb friction: a held node whose tissue pulls it along the probe's surface harder than
   // friction_coefficient × its push slides along the surface; the rest stick. 0: frictionless, as
-  // the exact FEM's contact. The PCG FEM solves the slide inside its CG (held along the probe's
+  // the exact FEM's contact. The PCG and corotational FEM solve the slide inside their CG (held
+  // along the probe's
   // normal only, against a friction force of that bound: a still probe's patch settles with the
   // tissue); the MSDS slides each node a step at a time to where its pull is down to the bound.
   kCoulombSlip,
@@ -103,6 +104,8 @@ struct CorotationalSettings {
   // node) a frame is cut short along its update; with 0, no frame may end with more inverted
   // tets than it started with.
   double max_inverted_fraction = 0.005;
+  // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
+  HeldContactSettings contact;
 };
 
 // The deformation methods the kiosk can switch between live, on the same mesh.
