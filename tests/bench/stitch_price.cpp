@@ -58,7 +58,8 @@ constexpr double kCornerMm = 61.0;
 
 using bench::max_norm;
 using bench::Region;
-// The PCG FEM's and the MSDS's held contact for every engine here (main() sets it).
+// The PCG FEM's, the corotational FEM's and the MSDS's held contact for every engine here
+// (main() sets it).
 sim::EngineSettings g_contact = bench::stick_contact();
 const sim::EngineSettings& held_contact() {
   return g_contact;

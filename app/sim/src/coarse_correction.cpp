@@ -277,7 +277,10 @@ void CoarseCorrection::apply(int s, DeformationEngine& engine) {
   for (int l = 0; l < n; ++l) {
     const Weights& w = sub.weights[l];
     Eigen::Vector3d move = Eigen::Vector3d::Zero();
-    for (int a = 0; a < 8; ++a) move += w.weight[a] * sub.correction.segment<3>(3 * w.coarse[a]);
+    // The coarse step left held nodes out, the ones the probe lets slide too: they stay put.
+    if (!sub.held[l]) {
+      for (int a = 0; a < 8; ++a) move += w.weight[a] * sub.correction.segment<3>(3 * w.coarse[a]);
+    }
     sub.move.segment<3>(3 * l) = move;
   }
   engine.displace_free_nodes_mm(sub.move);

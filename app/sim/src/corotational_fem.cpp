@@ -442,7 +442,9 @@ void CorotationalFem::hold_constrained_nodes() {
     if (prescribed_[node]) u_.segment<3>(3 * node) = prescribed_u_[node];
   }
   for (const auto& c : contacts_) {
-    held_[c.node] = slides_[c.node] ? 0 : 1;
+    // A sliding node (solve_to_convergence() after a step) keeps where it slid to.
+    if (slides_[c.node]) continue;
+    held_[c.node] = 1;
     u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
   }
 }
@@ -529,21 +531,29 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
       }
       Eigen::Vector3d ku = Eigen::Vector3d::Zero(), ku_held = Eigen::Vector3d::Zero();
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-        const Eigen::Vector3d term = block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+        const int col = block_col_[k];
+        const Eigen::Vector3d term = block_value_[k].lazyProduct(u_.segment<3>(3 * col));
         ku += term;
-        if (held_[block_col_[k]]) ku_held += term;
+        if (held_[col]) {
+          ku_held += term;
+        } else if (slides_[col]) {
+          // What the contact holds of a sliding node: its displacement along the normal.
+          const Eigen::Vector3d& n = sliding_hold_[col].normal;
+          ku_held.noalias() += block_value_[k] * (n * n.dot(u_.segment<3>(3 * col)));
+        }
       }
       const Eigen::Vector3d b = rhs_.segment<3>(3 * node);
       Eigen::Vector3d r = b - ku;
-      const Eigen::Vector3d free_rhs = b - ku_held;
-      Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+      Eigen::Vector3d free_rhs = b - ku_held;
       if (slides_[node]) {
         // Filtered: the node moves in the probe's tangent plane against its friction.
         r += sliding_hold_[node].friction_mn;
+        free_rhs += sliding_hold_[node].friction_mn;
         project_sliding(node, r);
-        z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
-        project_sliding(node, z);
+        project_sliding(node, free_rhs);
       }
+      Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
+      if (slides_[node]) project_sliding(node, z);
       r_.segment<3>(3 * node) = r;
       z_.segment<3>(3 * node) = z;
       p_.segment<3>(3 * node) = z;
@@ -625,7 +635,10 @@ CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::Vec
       // Not `<= 0`: a NaN volume counts as inverted too.
       if (deformed_edges(tet, rest_, u).determinant() > 0.0) continue;
       ++inverted;
-      with_free_node += !(held_[tet[0]] && held_[tet[1]] && held_[tet[2]] && held_[tet[3]]);
+      // On the probe: held, or held along its normal (sliding).
+      const auto on_probe = [&](int node) { return held_[node] || slides_[node]; };
+      with_free_node +=
+          !(on_probe(tet[0]) && on_probe(tet[1]) && on_probe(tet[2]) && on_probe(tet[3]));
     }
     chunk_sums_[chunk] = Eigen::Vector4d(inverted, with_free_node, 0.0, 0.0);
   });
@@ -665,7 +678,7 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
   const bool finite = u_.allFinite();
   const InversionCount inverted = finite ? count_inverted(u_) : InversionCount{};
   stats.inverted_tets = inverted.total;
-  // Tets whose four nodes are all held (pressed flat between probe contacts) are the
+  // Tets whose four nodes are all on the probe (pressed flat between probe contacts) are the
   // constraints' doing, which no solve or retry changes: only the others count against a frame.
   // A few of those are the linear element's weakness under the probe's rounded rim, not a
   // failed frame: refusing every such frame made the tissue lag a sliding probe on most frames.

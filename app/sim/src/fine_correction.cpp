@@ -123,8 +123,14 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
         state = kHeld;
       } else if (engine.holds_node(copies_[c].local)) {
         const DeformationEngine::SlidingHold* hold = engine.sliding_hold(copies_[c].local);
-        state = hold != nullptr ? kSliding : kHeld;
-        if (hold != nullptr) slide_normal_[g] = hold->normal;
+        // Copies that slide along different planes cannot move alike: held.
+        if (hold == nullptr ||
+            (state == kSliding && !(hold->normal.dot(slide_normal_[g]) > kSameNormalCosine))) {
+          state = kHeld;
+        } else {
+          state = kSliding;
+          slide_normal_[g] = hold->normal;
+        }
       }
     }
     free_[g] = state;

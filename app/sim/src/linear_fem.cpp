@@ -147,6 +147,7 @@ void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
     if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
   }
   for (int node : sliding_nodes_) {
+    if (prescribed_[node]) continue;  // prescribed since the step: it stays where it was put
     const Eigen::Vector3d& n = sliding_hold_[node].normal;
     const Eigen::Vector3d du = du_mm.segment<3>(3 * node);
     u_.segment<3>(3 * node) += du - du.dot(n) * n;
@@ -244,7 +245,11 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
       slides_[node] = 1;
     }
   }
-  for (int node = 0; node < n; ++node) {
+  mask_held_nodes();
+}
+
+void LinearFem::mask_held_nodes() {
+  for (int node = 0; node < node_count(); ++node) {
     const bool held = fixed_[node] || prescribed_[node] || in_contact_[node];
     free_mask_.segment<3>(3 * node).setConstant(held ? 0.0 : 1.0);
   }
@@ -397,6 +402,7 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
     u_ = last_good_u_;
     std::fill(in_contact_.begin(), in_contact_.end(), 0);
     stop_sliding();
+    mask_held_nodes();
     update_deformed();
   }
   return out;
@@ -414,6 +420,7 @@ void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     in_contact_[node] = 0;  // the next step finds the probe's contacts afresh
   }
   stop_sliding();
+  mask_held_nodes();
   last_good_u_ = u_;
   update_deformed();
 }

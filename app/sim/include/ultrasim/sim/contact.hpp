@@ -41,13 +41,14 @@ SurfacePoint slide_held_node(const ProbeCollider& probe, const SurfacePoint& hel
                              const Eigen::Vector3d& tissue_force_mn,
                              const Eigen::Matrix3d& stiffness, double friction_coefficient);
 
-// Coulomb's law for a solver that slides held nodes inside its own solve (the PCG FEM's filtered
-// CG): a node the probe holds at a point with outward `normal`, where the tissue's elastic force
-// on it is `tissue_force_mn`, sticks (held in all three axes) while the tissue pulls it along the
-// surface no harder than `friction_coefficient` × its push against the probe; otherwise it is
-// held along the normal only and slides in the tangent plane against a friction force of that
-// bound, opposite the pull (`friction_mn`, added to its load). Frictionless, every held node
-// slides. A force that is not finite sticks.
+// Coulomb's law for a solver that slides held nodes inside its own solve (the PCG and
+// corotational FEM's filtered CG): a node the probe holds at a point with outward `normal`, where
+// the tissue's elastic force on it is `tissue_force_mn`, sticks (held in all three axes) while
+// the tissue pulls it along the surface no harder than `friction_coefficient` × its push against
+// the probe; otherwise it is held along the normal only and slides in the tangent plane against a
+// friction force of that bound, opposite the pull (`friction_mn`, added to its load).
+// Frictionless, every held node slides; so does one the tissue pulls off the probe (no push, no
+// friction: letting go of it is the engine's rule). A force that is not finite sticks.
 struct HeldNodeLaw {
   bool slides = false;
   Eigen::Vector3d friction_mn = Eigen::Vector3d::Zero();

@@ -31,14 +31,15 @@ struct CorotationalConvergence {
 // cost no energy, which is what keeps large rotations from inflating the tissue as linear FEM
 // (Cauchy strain) does.
 //
-// Each frame: contacts are found on the last frame's shape (nodes inside the probe are held at
-// the collider's push-out target; fixed nodes at rest), every tet's rotation is extracted from
-// the shape with those nodes moved, the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a
-// block-sparse matrix whose pattern and scatter map were built once, and K_R u = Σ R K_e (x0 −
-// Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with a fixed iteration
-// budget, warm-started from the last frame. So each frame's rotations lag its solve by one
-// frame; solve_to_convergence() repeats rotations and solves until the shape stops changing:
-// the reference the per-frame method's lag is measured against.
+// Each frame: contacts are found on the last frame's shape (nodes inside the probe are put at
+// the collider's push-out target and held there, or, under the default Coulomb slip, held along
+// the probe's normal only and left to slide in the CG as the PCG FEM's; fixed nodes at rest), every
+// tet's rotation is extracted from the shape with those nodes moved, the warped stiffness K_R = Σ R
+// K_e Rᵀ is assembled into a block-sparse matrix whose pattern and scatter map were built once, and
+// K_R u = Σ R K_e (x0 − Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with
+// a fixed iteration budget, warm-started from the last frame. So each frame's rotations lag its
+// solve by one frame; solve_to_convergence() repeats rotations and solves until the shape stops
+// changing: the reference the per-frame method's lag is measured against.
 //
 // Units: mm, kPa, mN. With a JobSystem, the per-tet rotations, the assembly and the CG vector
 // work are split into fixed chunks; every sum is taken in chunk order, so results are bitwise the
@@ -68,10 +69,10 @@ class CorotationalFem final : public DeformationEngine {
   // its update (1/2, 1/4, ... of it, the first within the limit), or all the way back to the
   // previous frame's shape, and reports diverged with Recovery::kSubstepped; inverted_tets then
   // counts the rejected result's inverted tets. A frame within the limit reports its inverted
-  // tets but not diverged. Tets with all four nodes held (pressed flat between contacts) are the
-  // constraints' doing: they are counted in inverted_tets but never against the limit. Nothing
-  // resets to rest: with the probe still deep in the tissue, rest would put nodes far inside it.
-  // frame_dt_s is ignored.
+  // tets but not diverged. Tets with all four nodes held or sliding on the probe (pressed flat
+  // between contacts) are the constraints' doing: they are counted in inverted_tets but never
+  // against the limit. Nothing resets to rest: with the probe still deep in the tissue, rest would
+  // put nodes far inside it. frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // Fewer CG iterations when the budget runs out (one at least); contacts, rotations and the
   // assembly are done every frame.
@@ -149,7 +150,8 @@ class CorotationalFem final : public DeformationEngine {
   void project_sliding(int node, Eigen::Ref<Eigen::Vector3d> v) const;
   // K_R u − b at a node with the last assembly: the force holding it there, mN.
   Eigen::Vector3d node_force_mn(int node) const;
-  // Marks fixed, prescribed and contact nodes held and puts them at their displacements.
+  // Marks fixed, prescribed and contact nodes held and puts them at their displacements (a
+  // sliding contact, as marked, keeps its own).
   void hold_constrained_nodes();
   void update_rotations();
   void assemble_warped_system();
@@ -169,7 +171,7 @@ class CorotationalFem final : public DeformationEngine {
   void update_deformed();
   struct InversionCount {
     int total = 0;
-    int with_free_node = 0;  // the solver's doing; tets with all four nodes held are not
+    int with_free_node = 0;  // the solver's doing; tets with all four nodes on the probe are not
   };
   InversionCount count_inverted(const Eigen::VectorXd& u) const;
 

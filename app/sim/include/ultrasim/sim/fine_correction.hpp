@@ -22,7 +22,8 @@ namespace ultrasim::sim {
 // piece's), D the grid nodes that are neither fixed nor held by the probe in any copy and whose
 // every copy stepped (the rest stay where the frame left them), and adds Δu to every copy. A node
 // the probe holds along its normal only in some copy (DeformationEngine::sliding_hold) and in no
-// copy in full moves in its tangent plane, its friction counted in f (a filtered CG). For
+// copy in full (nor along another normal) moves in its tangent plane, its friction counted in f
+// (a filtered CG). For
 // the linear (PCG) FEM it is the one-piece solve's own step from the stitched shape; for the
 // MSDS the stiffness is linearised about rest, and the step is quasi-static: it moves the tissue
 // toward equilibrium, not along the one piece's damped motion.
@@ -71,6 +72,8 @@ class FineCorrection {
   void constrain_sliding(Eigen::VectorXd& v) const;
 
   static constexpr std::uint8_t kHeld = 0, kFree = 1, kSliding = 2;
+  // Two copies of a node slide together if their normals are this close (under 1°).
+  static constexpr double kSameNormalCosine = 0.99985;
 
   std::vector<Sub> subs_;
   std::vector<int> copies_begin_;  // per grid node, its copies (CSR)

@@ -76,7 +76,8 @@ class LinearFem final : public DeformationEngine {
   void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
 
   // Coarse correction of a stitched volume: K; −K u; fixed, prescribed or in contact; u += du on
-  // the free nodes (the next step warm-starts from it and finds the contacts as usual).
+  // the free nodes and its tangential part on the sliding ones (the next step warm-starts from it
+  // and finds the contacts as usual).
   Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override {
     return stiffness_;
   }
@@ -91,7 +92,7 @@ class LinearFem final : public DeformationEngine {
   void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
   // Nodal forces K u (− the anchor's pull) on node n, mN: the reaction where the node is
-  // constrained, ~0 where free.
+  // constrained (a sliding node's along the probe's normal, plus its friction), ~0 where free.
   Eigen::Vector3d nodal_force_mn(int node) const;
 
   // Deformed node positions (rest + displacement), mm; valid until the next step.
@@ -113,6 +114,8 @@ class LinearFem final : public DeformationEngine {
   void apply_collider(const ProbeCollider* collider);
   // No held node slides (until the next apply_collider()).
   void stop_sliding();
+  // free_mask_ from the fixed, prescribed, contact and sliding nodes as they are.
+  void mask_held_nodes();
   // S: zeroes what the constraints hold in `v` (per node: all of a fixed, prescribed or stuck
   // node; the probe's normal component of a sliding one). Does not allocate.
   void constrain(Eigen::VectorXd& v) const;

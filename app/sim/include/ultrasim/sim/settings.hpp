@@ -38,9 +38,9 @@ enum class HeldContactModel {
   // Coulomb friction: a held node whose tissue pulls it along the probe's surface harder than
   // friction_coefficient × its push slides along the surface; the rest stick. 0: frictionless, as
   // the exact FEM's contact. The PCG and corotational FEM solve the slide inside their CG (held
-  // along the probe's
-  // normal only, against a friction force of that bound: a still probe's patch settles with the
-  // tissue); the MSDS slides each node a step at a time to where its pull is down to the bound.
+  // along the probe's normal only, against a friction force of that bound: a still probe's patch
+  // settles with the tissue); the MSDS slides each node a step at a time to where its pull is
+  // down to the bound.
   kCoulombSlip,
 };
 
