@@ -11,6 +11,7 @@
 #include "sliding_reference.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
+#include "ultrasim/sim/corotational_fem.hpp"
 
 namespace ultrasim::sim {
 namespace {
@@ -183,6 +184,46 @@ TEST(LinearFem, SlidingNodesSettleInTheirTangentPlanesAsTheReducedProblemSays) {
       EXPECT_NEAR(fem.displacement_mm(n).dot(hold->normal),
                   expected.segment<3>(3 * n).dot(hold->normal), 1e-9);
     }
+  }
+}
+
+// Friction opposes the slide. One node free, the rest of the block fixed: the probe catches it
+// displaced 1 mm sideways and its tissue pulls it back harder than μ × its push, so it slides
+// back along the sphere (the radial push-out has no part along the surface), and the friction
+// the law gives it points the other way. The corotational FEM solves its slip the same way.
+TEST(LinearFem, FrictionOpposesTheSlide) {
+  Block b = make_block();
+  int node = -1;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    if (b.mesh.rest_positions_mm[n].isZero()) node = n;
+  }
+  ASSERT_GE(node, 0);
+  std::fill(b.fixed.begin(), b.fixed.end(), 1);
+  b.fixed[node] = 0;
+  const HeldContactSettings gel{HeldContactModel::kCoulombSlip, 0.3};
+  FemSettings fem_settings = pcg_settings(50, 1e-14);
+  fem_settings.contact = gel;
+  CorotationalSettings corotational_settings;
+  corotational_settings.pcg_iterations_per_frame = 50;
+  corotational_settings.relative_tolerance = 1e-14;
+  corotational_settings.contact = gel;
+  LinearFem linear(b.mesh, b.materials, b.fixed, fem_settings);
+  CorotationalFem corotational(b.mesh, b.materials, b.fixed, corotational_settings);
+  for (DeformationEngine* fem : std::initializer_list<DeformationEngine*>{&linear, &corotational}) {
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+    u.segment<3>(3 * node) = Eigen::Vector3d(1.0, 0.0, 0.5);
+    fem->set_displacements_mm(u);
+    const ProbeCollider probe =
+        ProbeCollider::sphere(SphereCollider::behind_face({0, 0, 1.5}, {0, 0, 1}, 15.0));
+    fem->step(&probe, 1.0 / 60);
+    const auto* hold = fem->sliding_hold(node);
+    ASSERT_NE(hold, nullptr) << fem->name() << ": pulled back harder than friction allows";
+    ASSERT_GT(hold->friction_mn.norm(), 0.0) << fem->name();
+    Eigen::Vector3d slide = fem->displacements_mm().segment<3>(3 * node) - u.segment<3>(3 * node);
+    slide -= slide.dot(hold->normal) * hold->normal;
+    EXPECT_LT(slide.x(), -0.01) << fem->name() << ": back towards rest";
+    EXPECT_LT(hold->friction_mn.dot(slide), 0.0) << fem->name();
+    EXPECT_GT(hold->friction_mn.x(), 0.0) << fem->name();
   }
 }
 

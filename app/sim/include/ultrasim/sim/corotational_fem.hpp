@@ -58,6 +58,11 @@ class CorotationalFem final : public DeformationEngine {
   EngineKind kind() const override { return EngineKind::kCorotationalFem; }
   std::string_view name() const override { return "corotational FEM"; }
 
+  // A contact that slides this frame (HeldContactSettings): its normal and friction.
+  const SlidingHold* sliding_hold(int node) const override {
+    return slides_[node] ? &sliding_hold_[node] : nullptr;
+  }
+
   // One frame: contacts, rotations, assembly, pcg_iterations_per_frame CG iterations.
   // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
   // surface, are held at its push-out target; nodes it pushed on last frame stay on its surface
