@@ -126,7 +126,8 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
       jobs_(jobs),
       rest_(mesh.rest_positions_mm),
       tets_(mesh.tets),
-      fixed_(fixed_nodes.begin(), fixed_nodes.end()) {
+      fixed_(fixed_nodes.begin(), fixed_nodes.end()),
+      sliding_(mesh.node_count()) {
   const int n = mesh.node_count();
   fixed_count_ = check_tet_model("CorotationalFem", mesh, tet_materials, fixed_nodes);
   if (settings.pcg_iterations_per_frame < 1) {
@@ -148,9 +149,6 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   held_.assign(n, 0);
   contact_push_mn_.assign(n, 0.0);
   contacts_.reserve(n);  // every node at most once: step() never grows it
-  slides_.assign(n, 0);
-  sliding_hold_.resize(n);
-  sliding_nodes_.reserve(n);
   prescribed_.assign(n, 0);
   prescribed_u_.assign(n, Eigen::Vector3d::Zero());
   deformed_ = rest_;
@@ -368,8 +366,7 @@ void CorotationalFem::apply_constraints(const ProbeCollider* probe) {
 }
 
 void CorotationalFem::stop_sliding() {
-  for (int node : sliding_nodes_) slides_[node] = 0;
-  sliding_nodes_.clear();
+  sliding_.clear();
   std::fill(chunk_slides_.begin(), chunk_slides_.end(), 0);
 }
 
@@ -380,17 +377,10 @@ void CorotationalFem::choose_sliding_nodes() {
     const HeldNodeLaw law =
         coulomb_hold(c.normal, -node_force_mn(c.node), settings_.contact.friction_coefficient);
     if (!law.slides) continue;
-    slides_[c.node] = 1;
-    sliding_hold_[c.node] = {c.normal, law.friction_mn};
-    sliding_nodes_.push_back(c.node);
+    sliding_.add(c.node, c.normal, law.friction_mn);
     chunk_slides_[c.node / kNodesPerChunk] = 1;
     held_[c.node] = 0;
   }
-}
-
-void CorotationalFem::project_sliding(int node, Eigen::Ref<Eigen::Vector3d> v) const {
-  const Eigen::Vector3d& n = sliding_hold_[node].normal;
-  v -= v.dot(n) * n;
 }
 
 void CorotationalFem::add_followers(const ProbeCollider& probe) {
@@ -443,7 +433,7 @@ void CorotationalFem::hold_constrained_nodes() {
   }
   for (const auto& c : contacts_) {
     // A sliding node (solve_to_convergence() after a step) keeps where it slid to.
-    if (slides_[c.node]) continue;
+    if (sliding_.slides(c.node)) continue;
     held_[c.node] = 1;
     u_.segment<3>(3 * c.node) = c.target_mm - rest_[c.node];
   }
@@ -536,24 +526,25 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         ku += term;
         if (held_[col]) {
           ku_held += term;
-        } else if (slides_[col]) {
+        } else if (sliding_.slides(col)) {
           // What the contact holds of a sliding node: its displacement along the normal.
-          const Eigen::Vector3d& n = sliding_hold_[col].normal;
+          const Eigen::Vector3d& n = sliding_.hold(col)->normal;
           ku_held.noalias() += block_value_[k] * (n * n.dot(u_.segment<3>(3 * col)));
         }
       }
       const Eigen::Vector3d b = rhs_.segment<3>(3 * node);
       Eigen::Vector3d r = b - ku;
       Eigen::Vector3d free_rhs = b - ku_held;
-      if (slides_[node]) {
+      const bool slides = sliding_.slides(node);
+      if (slides) {
         // Filtered: the node moves in the probe's tangent plane against its friction.
-        r += sliding_hold_[node].friction_mn;
-        free_rhs += sliding_hold_[node].friction_mn;
-        project_sliding(node, r);
-        project_sliding(node, free_rhs);
+        r += sliding_.hold(node)->friction_mn;
+        free_rhs += sliding_.hold(node)->friction_mn;
+        sliding_.project(node, r);
+        sliding_.project(node, free_rhs);
       }
       Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
-      if (slides_[node]) project_sliding(node, z);
+      if (slides) sliding_.project(node, z);
       r_.segment<3>(3 * node) = r;
       z_.segment<3>(3 * node) = z;
       p_.segment<3>(3 * node) = z;
@@ -587,7 +578,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
           kp.noalias() += block_value_[k].lazyProduct(p_.segment<3>(3 * block_col_[k]));
         }
-        if (slides_[node]) project_sliding(node, kp);
+        if (sliding_.slides(node)) sliding_.project(node, kp);
         q_.segment<3>(3 * node) = kp;
         pq += p_.segment<3>(3 * node).dot(kp);
       }
@@ -605,7 +596,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
       z_.segment(lo, len) = inverse_diagonal_.segment(lo, len).cwiseProduct(r_.segment(lo, len));
       if (chunk_slides_[chunk]) {
         for (int node = begin; node < end; ++node) {
-          if (slides_[node]) project_sliding(node, z_.segment<3>(3 * node));
+          if (sliding_.slides(node)) sliding_.project(node, z_.segment<3>(3 * node));
         }
       }
       chunk_sums_[chunk] = Eigen::Vector4d(r_.segment(lo, len).dot(z_.segment(lo, len)),
@@ -636,7 +627,7 @@ CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::Vec
       if (deformed_edges(tet, rest_, u).determinant() > 0.0) continue;
       ++inverted;
       // On the probe: held, or held along its normal (sliding).
-      const auto on_probe = [&](int node) { return held_[node] || slides_[node]; };
+      const auto on_probe = [&](int node) { return held_[node] || sliding_.slides(node); };
       with_free_node +=
           !(on_probe(tet[0]) && on_probe(tet[1]) && on_probe(tet[2]) && on_probe(tet[3]));
     }
@@ -660,10 +651,7 @@ double CorotationalFem::measure_contact_forces() {
     const Eigen::Vector3d force_mn = node_force_mn(c.node);
     contact_push_mn_[c.node] = force_mn.dot(c.normal);
     // A sliding node: its push and friction only (LinearFem::update_contact_forces says why).
-    total_mn +=
-        slides_[c.node]
-            ? Eigen::Vector3d(force_mn.dot(c.normal) * c.normal + sliding_hold_[c.node].friction_mn)
-            : force_mn;
+    total_mn += sliding_.slides(c.node) ? sliding_.probe_force_mn(c.node, force_mn) : force_mn;
   }
   return total_mn.norm() / 1000.0;
 }

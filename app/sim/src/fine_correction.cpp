@@ -12,7 +12,8 @@ namespace ultrasim::sim {
 FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
                                std::span<const DeformationEngine* const> engines,
                                std::span<const std::uint8_t> fixed_grid_nodes)
-    : fixed_(fixed_grid_nodes.begin(), fixed_grid_nodes.end()) {
+    : fixed_(fixed_grid_nodes.begin(), fixed_grid_nodes.end()),
+      sliding_(static_cast<int>(fixed_grid_nodes.size())) {
   if (grid_nodes.size() != engines.size()) {
     throw std::invalid_argument("FineCorrection: " + std::to_string(grid_nodes.size()) +
                                 " node maps for " + std::to_string(engines.size()) + " engines");
@@ -52,8 +53,6 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
     if (diagonal[i] > 0.0) inverse_diagonal_[i] = 1.0 / diagonal[i];
   }
   free_.assign(n, kHeld);
-  slide_normal_.assign(n, Eigen::Vector3d::UnitZ());
-  sliding_.reserve(n);
   stepped_.assign(subs_.size(), 0);
   stepped_list_.reserve(subs_.size());
   for (Eigen::VectorXd* v : {&x_, &r_, &z_, &p_, &q_}) *v = Eigen::VectorXd::Zero(3 * n);
@@ -87,13 +86,6 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
   gather(q, true);
 }
 
-void FineCorrection::constrain_sliding(Eigen::VectorXd& v) const {
-  for (int g : sliding_) {
-    auto d = v.segment<3>(3 * g);
-    d -= d.dot(slide_normal_[g]) * slide_normal_[g];
-  }
-}
-
 FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* const> engines,
                                                std::span<const std::uint8_t> stepped,
                                                int iterations, double relative_tolerance,
@@ -115,8 +107,10 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   bool any_free = false;
   sliding_.clear();
   for (int g = 0; g < n; ++g) {
-    // Held if any copy is (or did not step); sliding if any copy slides, along its normal.
+    // Held if any copy is (or did not step); sliding if any copy slides, along its normal, the
+    // copies' friction summed.
     std::uint8_t state = fixed_[g] ? kHeld : kFree;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero(), friction_mn = Eigen::Vector3d::Zero();
     for (int c = copies_begin_[g]; state != kHeld && c < copies_begin_[g + 1]; ++c) {
       const DeformationEngine& engine = *engines[copies_[c].sub];
       if (!stepped[copies_[c].sub]) {
@@ -125,16 +119,17 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
         const DeformationEngine::SlidingHold* hold = engine.sliding_hold(copies_[c].local);
         // Copies that slide along different planes cannot move alike: held.
         if (hold == nullptr ||
-            (state == kSliding && !(hold->normal.dot(slide_normal_[g]) > kSameNormalCosine))) {
+            (state == kSliding && !(hold->normal.dot(normal) > kSameNormalCosine))) {
           state = kHeld;
         } else {
           state = kSliding;
-          slide_normal_[g] = hold->normal;
+          normal = hold->normal;
+          friction_mn += hold->friction_mn;
         }
       }
     }
     free_[g] = state;
-    if (state == kSliding) sliding_.push_back(g);
+    if (state == kSliding) sliding_.add(g, normal, friction_mn);
     any_free = any_free || state != kHeld;
   }
   if (!any_free) return result;
@@ -150,13 +145,8 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   gather(r_, false);
   const double load = r_.norm();
   gather(r_, true);
-  for (int g : sliding_) {
-    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      const auto* hold = engines[copies_[c].sub]->sliding_hold(copies_[c].local);
-      if (hold != nullptr) r_.segment<3>(3 * g) += hold->friction_mn;
-    }
-  }
-  const auto filter = [this](Eigen::VectorXd& v) { constrain_sliding(v); };
+  sliding_.add_friction(r_);
+  const auto filter = [this](Eigen::VectorXd& v) { sliding_.project_all(v); };
   filter(r_);
   x_.setZero();
   z_ = inverse_diagonal_.cwiseProduct(r_);

@@ -87,6 +87,7 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
       only_held_by_adhesion_(mesh.rest_positions_mm.size(), 0),
       u_before_contact_(mesh.rest_positions_mm.size(), Eigen::Vector3d::Zero()),
       contact_normal_(mesh.rest_positions_mm.size(), Eigen::Vector3d::UnitZ()),
+      sliding_(mesh.node_count()),
       tets_(mesh.tets),
       deformed_(mesh.rest_positions_mm) {
   const int n = mesh.node_count();
@@ -109,9 +110,6 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
     if (fixed_[node]) free_mask_.segment<3>(3 * node).setZero();
   }
   r_ = z_ = p_ = q_ = Eigen::VectorXd::Zero(3 * n);
-  sliding_nodes_.reserve(n);
-  sliding_hold_.resize(n);
-  slides_.assign(n, 0);
   last_good_u_ = u_;
 }
 
@@ -146,11 +144,11 @@ void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
   for (int node = 0; node < node_count(); ++node) {
     if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
   }
-  for (int node : sliding_nodes_) {
+  for (int node : sliding_.nodes()) {
     if (prescribed_[node]) continue;  // prescribed since the step: it stays where it was put
-    const Eigen::Vector3d& n = sliding_hold_[node].normal;
-    const Eigen::Vector3d du = du_mm.segment<3>(3 * node);
-    u_.segment<3>(3 * node) += du - du.dot(n) * n;
+    Eigen::Vector3d du = du_mm.segment<3>(3 * node);
+    sliding_.project(node, du);
+    u_.segment<3>(3 * node) += du;
   }
   update_deformed();
 }
@@ -232,17 +230,14 @@ void LinearFem::apply_collider(const ProbeCollider* collider) {
       }
     }
   }
-  stop_sliding();
+  sliding_.clear();
   if (collider != nullptr && settings_.contact.model == HeldContactModel::kCoulombSlip) {
     for (int node = 0; node < n; ++node) {
       if (!in_contact_[node]) continue;
       // nodal_force_mn is what holds the node where it is: the tissue's force is its opposite.
       const HeldNodeLaw law = coulomb_hold(contact_normal_[node], -nodal_force_mn(node),
                                            settings_.contact.friction_coefficient);
-      if (!law.slides) continue;
-      sliding_nodes_.push_back(node);
-      sliding_hold_[node] = {contact_normal_[node], law.friction_mn};
-      slides_[node] = 1;
+      if (law.slides) sliding_.add(node, contact_normal_[node], law.friction_mn);
     }
   }
   mask_held_nodes();
@@ -253,24 +248,12 @@ void LinearFem::mask_held_nodes() {
     const bool held = fixed_[node] || prescribed_[node] || in_contact_[node];
     free_mask_.segment<3>(3 * node).setConstant(held ? 0.0 : 1.0);
   }
-  for (int node : sliding_nodes_) free_mask_.segment<3>(3 * node).setOnes();
-}
-
-void LinearFem::stop_sliding() {
-  for (int node : sliding_nodes_) slides_[node] = 0;
-  sliding_nodes_.clear();
+  for (int node : sliding_.nodes()) free_mask_.segment<3>(3 * node).setOnes();
 }
 
 void LinearFem::constrain(Eigen::VectorXd& v) const {
   v.array() *= free_mask_.array();
-  project_sliding(v);
-}
-
-void LinearFem::project_sliding(Eigen::VectorXd& v) const {
-  for (int node : sliding_nodes_) {
-    auto d = v.segment<3>(3 * node);
-    d -= d.dot(sliding_hold_[node].normal) * sliding_hold_[node].normal;
-  }
+  sliding_.project_all(v);
 }
 
 FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
@@ -297,7 +280,7 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
   // against where this frame started instead.
   const double reference = std::max({rhs_norm, r_.norm(), 1e-30});
   z_ = inverse_diagonal_.cwiseProduct(r_);
-  project_sliding(z_);
+  sliding_.project_all(z_);
   p_ = z_;
   double rz = r_.dot(z_);
   double residual = r_.norm();
@@ -311,7 +294,7 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
     constrain(q_);
     // Converged to rounding or the system lost definiteness: stop.
     // r is constrained, so M⁻¹ r is zero where the mask is: only the sliding nodes need S.
-    const auto filter = [this](Eigen::VectorXd& v) { project_sliding(v); };
+    const auto filter = [this](Eigen::VectorXd& v) { sliding_.project_all(v); };
     if (!jacobi_cg_update(inverse_diagonal_, q_, u_, r_, z_, p_, rz, filter)) break;
     residual = r_.norm();
     ++it;
@@ -328,7 +311,7 @@ FemStepStats LinearFem::run_pcg(int max_iterations, double tolerance,
 
 void LinearFem::add_loads(Eigen::VectorXd& forces_mn) const {
   if (has_anchors_) forces_mn += anchor_load_mn_;
-  for (int node : sliding_nodes_) forces_mn.segment<3>(3 * node) += sliding_hold_[node].friction_mn;
+  sliding_.add_friction(forces_mn);
 }
 
 double LinearFem::update_contact_forces() {
@@ -338,15 +321,7 @@ double LinearFem::update_contact_forces() {
     if (!in_contact_[node]) continue;
     const Eigen::Vector3d force = nodal_force_mn(node);
     contact_push_mn_[node] = force.dot(contact_normal_[node]);
-    if (slides_[node]) {
-      // The probe holds a sliding node along its normal and rubs it with the friction: what K u
-      // has besides is the CG's unfinished imbalance, not a force the probe exerts (the same at
-      // convergence).
-      const SlidingHold& hold = sliding_hold_[node];
-      total_mn += force.dot(hold.normal) * hold.normal + hold.friction_mn;
-    } else {
-      total_mn += force;
-    }
+    total_mn += sliding_.slides(node) ? sliding_.probe_force_mn(node, force) : force;
   }
   return total_mn.norm() / 1000.0;
 }
@@ -401,7 +376,7 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
     out.recovery = Recovery::kKeptLastGood;
     u_ = last_good_u_;
     std::fill(in_contact_.begin(), in_contact_.end(), 0);
-    stop_sliding();
+    sliding_.clear();
     mask_held_nodes();
     update_deformed();
   }
@@ -419,7 +394,7 @@ void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
     in_contact_[node] = 0;  // the next step finds the probe's contacts afresh
   }
-  stop_sliding();
+  sliding_.clear();
   mask_held_nodes();
   last_good_u_ = u_;
   update_deformed();

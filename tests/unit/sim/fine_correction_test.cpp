@@ -10,6 +10,7 @@
 #include <Eigen/SparseCholesky>
 #include <cmath>
 #include <numeric>
+#include <span>
 #include <vector>
 
 #include "slab_region.hpp"
@@ -24,6 +25,17 @@ namespace {
 using Region = testing::SlabRegion;
 using testing::max_norm;
 constexpr auto make_region = testing::make_fat_over_muscle_slab;
+
+// The fine correction of a region in one piece: every grid node is the engine's own node, and
+// `built` gives the stiffness.
+FineCorrection one_piece_correction(const DeformationEngine& built,
+                                    std::span<const std::uint8_t> fixed) {
+  std::vector<int> grid_nodes(fixed.size());
+  std::iota(grid_nodes.begin(), grid_nodes.end(), 0);
+  const std::vector<std::vector<int>> maps{grid_nodes};
+  const std::vector<const DeformationEngine*> engines{&built};
+  return FineCorrection(maps, engines, fixed);
+}
 
 TEST(FineCorrection, OnOnePieceItSolvesTheFreeNodesBalance) {
   const Region r = make_region({7, 6, 5});
@@ -62,12 +74,8 @@ TEST(FineCorrection, OnOnePieceItSolvesTheFreeNodesBalance) {
   ASSERT_EQ(ldlt.info(), Eigen::Success);
   const Eigen::VectorXd expected_free = ldlt.solve(rhs);
 
-  std::vector<int> grid_nodes(n);
-  std::iota(grid_nodes.begin(), grid_nodes.end(), 0);
-  const std::vector<std::vector<int>> maps{grid_nodes};
-  LinearFem fresh(r.mesh, r.materials, r.fixed, FemSettings{});
-  const std::vector<const DeformationEngine*> built{&fresh};
-  FineCorrection fine(maps, built, r.fixed);
+  const LinearFem fresh(r.mesh, r.materials, r.fixed, FemSettings{});
+  FineCorrection fine = one_piece_correction(fresh, r.fixed);
   const std::vector<DeformationEngine*> engines{&fem};
   const std::vector<std::uint8_t> stepped{1};
   const FineCorrection::Result result = fine.correct(engines, stepped, 2000, 1e-12, {}, nullptr);
@@ -109,11 +117,7 @@ TEST(FineCorrection, OnOnePieceItSlidesTheSlidingNodesInTheirTangentPlanes) {
   ASSERT_GT(with_friction, 2) << sliding << " sliding";
   const Eigen::VectorXd expected = testing::constrained_equilibrium(fem);
 
-  std::vector<int> grid_nodes(r.mesh.node_count());
-  std::iota(grid_nodes.begin(), grid_nodes.end(), 0);
-  const std::vector<std::vector<int>> maps{grid_nodes};
-  const std::vector<const DeformationEngine*> built{&fem};
-  FineCorrection fine(maps, built, r.fixed);
+  FineCorrection fine = one_piece_correction(fem, r.fixed);
   const std::vector<DeformationEngine*> engines{&fem};
   const std::vector<std::uint8_t> stepped{1};
   const FineCorrection::Result result = fine.correct(engines, stepped, 4000, 1e-13, {}, nullptr);
@@ -132,11 +136,7 @@ TEST(FineCorrection, StopsWhenTheFrameHasNoTimeLeft) {
     if (!r.fixed[i]) u[3 * i + 2] = 0.5;
   }
   fem.set_displacements_mm(u);
-  std::vector<int> grid_nodes(r.mesh.node_count());
-  std::iota(grid_nodes.begin(), grid_nodes.end(), 0);
-  const std::vector<std::vector<int>> maps{grid_nodes};
-  const std::vector<const DeformationEngine*> built{&fem};
-  FineCorrection fine(maps, built, r.fixed);
+  FineCorrection fine = one_piece_correction(fem, r.fixed);
   const std::vector<DeformationEngine*> engines{&fem};
   const std::vector<std::uint8_t> stepped{1};
   int asked = 0;

@@ -12,6 +12,7 @@
 #include "ultrasim/sim/contact.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/settings.hpp"
+#include "ultrasim/sim/sliding_nodes.hpp"
 
 namespace ultrasim::sim {
 
@@ -59,9 +60,7 @@ class CorotationalFem final : public DeformationEngine {
   std::string_view name() const override { return "corotational FEM"; }
 
   // A contact that slides this frame (HeldContactSettings): its normal and friction.
-  const SlidingHold* sliding_hold(int node) const override {
-    return slides_[node] ? &sliding_hold_[node] : nullptr;
-  }
+  const SlidingHold* sliding_hold(int node) const override { return sliding_.hold(node); }
 
   // One frame: contacts, rotations, assembly, pcg_iterations_per_frame CG iterations.
   // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
@@ -151,8 +150,6 @@ class CorotationalFem final : public DeformationEngine {
   // held along the probe's normal only; stop_sliding() forgets last frame's.
   void choose_sliding_nodes();
   void stop_sliding();
-  // v minus its part along a sliding node's normal.
-  void project_sliding(int node, Eigen::Ref<Eigen::Vector3d> v) const;
   // K_R u − b at a node with the last assembly: the force holding it there, mN.
   Eigen::Vector3d node_force_mn(int node) const;
   // Marks fixed, prescribed and contact nodes held and puts them at their displacements (a
@@ -227,11 +224,8 @@ class CorotationalFem final : public DeformationEngine {
   Eigen::VectorXd load_mn_;  // dead nodal loads, node-major
   std::vector<NodeContact> contacts_;
   std::vector<double> contact_push_mn_;  // per node: last frame's push along the probe's normal
-  // The contacts that slide this frame: per node a flag and (where set) normal and friction; the
-  // list; per node chunk, whether it holds one.
-  std::vector<std::uint8_t> slides_;
-  std::vector<SlidingHold> sliding_hold_;
-  std::vector<int> sliding_nodes_;
+  // The contacts that slide this frame; per node chunk, whether it holds one.
+  SlidingNodes sliding_;
   std::vector<std::uint8_t> chunk_slides_;
   std::vector<Eigen::Vector3d> deformed_;
   // Per chunk partial sums of a pass (dot products, counts), combined by sum_chunks().

@@ -9,6 +9,7 @@
 
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/sliding_nodes.hpp"
 
 namespace ultrasim::sim {
 
@@ -68,8 +69,6 @@ class FineCorrection {
   // out = Σ over each grid node's copies of the sub-volumes' local_out (free_only: over the free
   // nodes, 0 elsewhere).
   void gather(Eigen::VectorXd& out, bool free_only) const;
-  // Zeroes the normal component of `v` at the sliding grid nodes.
-  void constrain_sliding(Eigen::VectorXd& v) const;
 
   static constexpr std::uint8_t kHeld = 0, kFree = 1, kSliding = 2;
   // Two copies of a node slide together if their normals are this close (under 1°).
@@ -81,9 +80,8 @@ class FineCorrection {
   std::vector<std::uint8_t> fixed_;
   Eigen::VectorXd inverse_diagonal_;  // of the summed stiffness, per grid DOF
   // Per frame, sized once.
-  std::vector<std::uint8_t> free_;             // kHeld, kFree or kSliding
-  std::vector<Eigen::Vector3d> slide_normal_;  // where kSliding
-  std::vector<int> sliding_;
+  std::vector<std::uint8_t> free_;     // kHeld, kFree or kSliding
+  SlidingNodes sliding_;               // the kSliding grid nodes
   std::vector<std::uint8_t> stepped_;  // per sub-volume
   std::vector<int> stepped_list_;
   Eigen::VectorXd x_, r_, z_, p_, q_;

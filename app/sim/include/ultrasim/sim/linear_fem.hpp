@@ -12,6 +12,7 @@
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
+#include "ultrasim/sim/sliding_nodes.hpp"
 #include "ultrasim/sim/sphere_collider.hpp"
 
 namespace ultrasim::sim {
@@ -85,9 +86,7 @@ class LinearFem final : public DeformationEngine {
   bool holds_node(int node) const override {
     return fixed_[node] != 0 || prescribed_[node] != 0 || in_contact_[node] != 0;
   }
-  const SlidingHold* sliding_hold(int node) const override {
-    return slides_[node] ? &sliding_hold_[node] : nullptr;
-  }
+  const SlidingHold* sliding_hold(int node) const override { return sliding_.hold(node); }
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
   void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
@@ -112,15 +111,11 @@ class LinearFem final : public DeformationEngine {
  private:
   FemStepStats step_probe(const ProbeCollider* probe, const StepBudget& may_continue);
   void apply_collider(const ProbeCollider* collider);
-  // No held node slides (until the next apply_collider()).
-  void stop_sliding();
   // free_mask_ from the fixed, prescribed, contact and sliding nodes as they are.
   void mask_held_nodes();
   // S: zeroes what the constraints hold in `v` (per node: all of a fixed, prescribed or stuck
   // node; the probe's normal component of a sliding one). Does not allocate.
   void constrain(Eigen::VectorXd& v) const;
-  // The sliding nodes' part of S alone: their normal components zeroed.
-  void project_sliding(Eigen::VectorXd& v) const;
   // forces_mn += the loads: the anchor springs' pull and the friction on sliding nodes.
   void add_loads(Eigen::VectorXd& forces_mn) const;
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
@@ -141,10 +136,8 @@ class LinearFem final : public DeformationEngine {
   std::vector<Eigen::Vector3d> u_before_contact_;    // where a let-go node returns to
   std::vector<Eigen::Vector3d> contact_normal_;      // probe's outward normal at each contact
   // HeldContactModel::kCoulombSlip: the held nodes that slide this frame, held along the probe's
-  // normal only, inside the CG (coulomb_hold()). Capacity: every node.
-  std::vector<int> sliding_nodes_;
-  std::vector<SlidingHold> sliding_hold_;  // per node, valid where slides_ is set
-  std::vector<std::uint8_t> slides_;
+  // normal only, inside the CG (coulomb_hold()).
+  SlidingNodes sliding_;
   std::vector<std::array<std::int32_t, 4>> tets_;
   Eigen::VectorXd last_good_u_;
   int fixed_count_ = 0;
