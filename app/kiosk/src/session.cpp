@@ -248,8 +248,14 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
             t0};
   // One pointer: small enough for std::function's local buffer, so no allocation per frame.
   const auto time_left = [&batches] { return batches.may_start_another(); };
-  outcome.sim = engine_->step_within(
-      probe, frame_dt_s, deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left});
+  const sim::StepBudget budget = deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left};
+  if (stitched_ != nullptr) {
+    // The touched sub-volumes' batches share the time out (StitchedVolume::step_sharing).
+    const auto time_left_us = [&batches] { return batches.deadline_us - batches.clock.now_us(); };
+    outcome.sim = stitched_->step_sharing(probe, frame_dt_s, budget, time_left_us);
+  } else {
+    outcome.sim = engine_->step_within(probe, frame_dt_s, budget);
+  }
   if (stitched_ != nullptr) outcome.stitch = stitched_->last_stitch_stats();
   if (!outcome.probe_held) {
     // Kept last good because the budget ran out before smaller steps were tried is no verdict

@@ -107,11 +107,13 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   due_.assign(subs_.size(), 0);
   shown_ = mesh_.rest_positions_mm;
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
-  for (int s = 0; s < sub_volume_count(); ++s) {
-    subs_[s].stepped = true;  // the first frame's bounds come from the rest shape
+  seam_gap_mm_.assign(shared_nodes_.size(), 0.0);
+  seam_force_mn_.assign(shared_nodes_.size(), 0.0);
+  for (auto& sub : subs_) {
+    sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
   }
   finish_frame();
-  for (auto& sub : subs_) sub.stepped = false;
+  for (auto& sub : subs_) sub.stepped = sub.moved = false;
 }
 
 StitchedVolume::~StitchedVolume() = default;
@@ -259,7 +261,13 @@ EngineStepStats StitchedVolume::step(const ProbeCollider* probe, double frame_dt
 
 EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double frame_dt_s,
                                             const StepBudget& may_continue) {
-  for (auto& sub : subs_) sub.stepped = false;
+  return step_sharing(probe, frame_dt_s, may_continue, {});
+}
+
+EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double frame_dt_s,
+                                             const StepBudget& may_continue,
+                                             const TimeLeftUs& time_left_us) {
+  for (auto& sub : subs_) sub.stepped = sub.moved = false;
   // The coarse step first, from the shape the last frame left: the sub-volumes' own steps then
   // smooth what it leaves near the probe and at the seams, and the contacts are decided on their
   // answer, not on the coarse field's.
@@ -284,24 +292,60 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
       return may_continue();
     };
   }
-  int next = 0;
-  while (next < touched) {
-    const int count = std::min(batch, touched - next);
-    step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true, sub_budget);
-    next += count;
-  }
+  // A batch of touched sub-volumes before the last keeps the later batches' shares back. One
+  // pointer captured: no allocation.
+  struct BatchShare {
+    StitchedVolume* self;
+    const StepBudget* frame;
+    const TimeLeftUs* time_left_us;
+    std::int64_t reserve_us;
+  } share{this, &may_continue, &time_left_us, 0};
+  const StepBudget share_budget = [&share] {
+    std::lock_guard lock(share.self->budget_mutex_);
+    return (*share.frame)() && (*share.time_left_us)() > share.reserve_us;
+  };
   const int scheduled = static_cast<int>(schedule_.size());
-  while (next < scheduled && (!may_continue || may_continue())) {
-    const int count = std::min(batch, scheduled - next);
-    step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true, sub_budget);
+  // The time is shared evenly over the touched sub-volumes' batches and the others' that may
+  // fit: one more than fitted last frame (the touched sub-volumes' CG taking all of it left their
+  // neighbours unstepped, and the seams between them opened up to 2.5 mm on the large case).
+  const int touched_batches = (touched + batch - 1) / batch;
+  const int other_batches =
+      std::min((scheduled - touched + batch - 1) / batch, other_batches_fitted_ + 1);
+  const int due_batches = touched_batches + other_batches;
+  const bool shares = may_continue && time_left_us;
+  // The work after the steps (joins, seams, the shown positions) as long as last frame's.
+  const std::int64_t left_at_start_us = shares ? time_left_us() - after_steps_us_ : 0;
+  std::int64_t last_batch_us = 0;
+  int next = 0;
+  int b = 0;
+  const auto step_next_batch = [&](int end) {
+    const int count = std::min(batch, end - next);
+    const int batches_after = std::max(due_batches - 1 - b, 0);
+    share.reserve_us = after_steps_us_ + left_at_start_us * batches_after / due_batches;
+    const std::int64_t left_before_us = shares ? time_left_us() : 0;
+    step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true,
+               shares ? share_budget : sub_budget);
+    if (shares) last_batch_us = left_before_us - time_left_us();
     next += count;
-  }
+    ++b;
+  };
+  while (next < touched) step_next_batch(touched);
+  // A further batch only if one as long as the last still ends in time.
+  const auto another_batch_fits = [&] {
+    if (!may_continue) return true;
+    if (!shares) return may_continue();
+    const std::lock_guard lock(budget_mutex_);
+    return time_left_us() > last_batch_us + after_steps_us_;
+  };
+  while (next < scheduled && another_batch_fits()) step_next_batch(scheduled);
+  other_batches_fitted_ = b - touched_batches;
   for (int part = 1; part < parts; ++part) {
     for (int first = 0; first < next; first += batch) {
       step_batch(std::span(schedule_).subspan(first, std::min(batch, next - first)), probe,
                  part_dt_s, false, sub_budget);
     }
   }
+  const std::int64_t left_after_steps_us = shares ? time_left_us() : 0;
   const std::span<const int> stepped = std::span(schedule_).first(next);
   const bool refused = refuses_frame(stepped);
   if (refused) {
@@ -339,6 +383,7 @@ EngineStepStats StitchedVolume::step_within(const ProbeCollider* probe, double f
     });
   }
   finish_frame();
+  if (shares) after_steps_us_ = std::max<std::int64_t>(left_after_steps_us - time_left_us(), 0);
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;
   stats_.sub_volumes_deferred = 0;
@@ -460,7 +505,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       f.recovery = worse_recovery(f.recovery, s.recovery);
     }
     sub.positions_mm = sub.engine->deformed_positions_mm();
-    sub.stepped = true;
+    sub.stepped = sub.moved = true;
   };
   hal::parallel_for(jobs_, static_cast<int>(subs.size()), step_one);
 }
@@ -537,6 +582,7 @@ void StitchedVolume::join_held_copies() {
       SubVolume& sub = subs_[copies_[c].sub];
       sub.engine->move_held_node_mm(copies_[c].local, mean);  // leaves a free copy where it is
       sub.positions_mm = sub.engine->deformed_positions_mm();
+      sub.moved = true;
     }
   }
 }
@@ -544,7 +590,6 @@ void StitchedVolume::join_held_copies() {
 void StitchedVolume::correct_coarsely() {
   stats_.coarse_move_mm = 0.0;
   stats_.sub_volumes_corrected = 0;
-  for (auto& sub : subs_) sub.corrected = false;
   if (!coarse_) return;
   for (int g : shared_nodes_) {
     if (fixed_[g]) continue;
@@ -577,7 +622,7 @@ void StitchedVolume::correct_coarsely() {
     SubVolume& sub = subs_[corrected_[i]];
     coarse_->apply(corrected_[i], *sub.engine);
     sub.positions_mm = sub.engine->deformed_positions_mm();
-    sub.corrected = true;
+    sub.moved = true;
     sub.asleep = false;
   };
   hal::parallel_for(jobs_, static_cast<int>(corrected_.size()), apply);
@@ -586,7 +631,7 @@ void StitchedVolume::correct_coarsely() {
 
 void StitchedVolume::finish_frame() {
   for (auto& sub : subs_) {
-    if (!sub.stepped && !sub.corrected) continue;
+    if (!sub.moved) continue;
     const auto x = sub.engine->deformed_positions_mm();
     for (auto& b : sub.block_bounds) b.setEmpty();
     double motion_squared = 0.0;
@@ -603,34 +648,49 @@ void StitchedVolume::finish_frame() {
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
   }
+  // A seam none of whose copies moved keeps last frame's midpoint, gap and pull: on the large
+  // case most seams lie between sleeping sub-volumes, and going over every copy's position took a
+  // millisecond a frame.
   for (auto& sub : subs_) sub.max_seam_force_mn = 0.0;
   stats_.max_gap_mm = 0.0;
   stats_.max_seam_force_mn = 0.0;
-  for (int g : shared_nodes_) {
+  for (std::size_t i = 0; i < shared_nodes_.size(); ++i) {
+    const int g = shared_nodes_[i];
     const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-    const Eigen::Vector3d sum = copies_sum(g);
-    const int count = end - begin;
-    shown_[g] = sum / count;  // the published midpoint: no gap shows
-    if (fixed_[g]) continue;
-    double node_force = 0.0;
-    for (int c = begin; c < end; ++c) {
-      const Eigen::Vector3d x = copy_position(copies_[c]);
-      for (int d = c + 1; d < end; ++d) {
-        stats_.max_gap_mm = std::max(stats_.max_gap_mm, (copy_position(copies_[d]) - x).norm());
+    const bool moved = std::any_of(copies_.begin() + begin, copies_.begin() + end,
+                                   [this](const Copy& c) { return subs_[c.sub].moved; });
+    if (moved) {
+      const Eigen::Vector3d sum = copies_sum(g);
+      const int count = end - begin;
+      shown_[g] = sum / count;  // the published midpoint: no gap shows
+      double gap = 0.0;
+      double node_force = 0.0;
+      for (int c = begin; c < end && !fixed_[g]; ++c) {
+        const Eigen::Vector3d x = copy_position(copies_[c]);
+        for (int d = c + 1; d < end; ++d) {
+          gap = std::max(gap, (copy_position(copies_[d]) - x).norm());
+        }
+        // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+        node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
       }
-      // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
-      node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
+      seam_gap_mm_[i] = gap;
+      seam_force_mn_[i] = node_force;
     }
+    stats_.max_gap_mm = std::max(stats_.max_gap_mm, seam_gap_mm_[i]);
+    stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, seam_force_mn_[i]);
     // Every side of a seam feels its strongest pull: where three copies agree and the fourth
     // does not, the three must wake too, or the fourth is held deformed by sleepers for ever.
     for (int c = begin; c < end; ++c) {
       double& sub_force = subs_[copies_[c].sub].max_seam_force_mn;
-      sub_force = std::max(sub_force, node_force);
+      sub_force = std::max(sub_force, seam_force_mn_[i]);
     }
-    stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, node_force);
   }
-  for (int g = 0; g < mesh_.node_count(); ++g) {
-    u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
+  // Only a moved sub-volume's nodes (its seams' midpoints among them) changed.
+  for (const auto& sub : subs_) {
+    if (!sub.moved) continue;
+    for (const int g : sub.global_node) {
+      u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
+    }
   }
   stats_.sub_volumes_asleep = 0;
   for (auto& sub : subs_) {
@@ -661,14 +721,14 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     const auto x = sub.positions_mm;
     std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
     sub.asleep = false;
-    sub.stepped = true;
+    sub.stepped = sub.moved = true;
   }
   if (coarse_) {
     for (int s = 0; s < sub_volume_count(); ++s) coarse_->update(s, *subs_[s].engine);
   }
   finish_frame();
   for (auto& sub : subs_) {
-    sub.stepped = false;
+    sub.stepped = sub.moved = false;
     sub.asleep = false;
   }
 }

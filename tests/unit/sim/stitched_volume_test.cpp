@@ -476,6 +476,101 @@ TEST(StitchedVolume, PcgSubVolumesIterateOnlyWhileTheFrameHasTime) {
   EXPECT_EQ(always.displacements_mm(), unlimited.displacements_mm());
 }
 
+// The touched sub-volumes step in batches, one per thread: four batches here, on one thread.
+// Given the time left, each batch stops at its even share and the ones after it iterate as
+// long; asked only whether to go on, the first batch's CG takes the whole frame and the later
+// ones get one iteration each (the large case in the kiosk: 1.4 ms past the simulation's 4 ms at
+// p50, the later batches' fixed work). The frame's clock is virtual: each question costs 10 µs.
+TEST(StitchedVolume, TouchedBatchesShareTheTimeLeft) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  EngineSettings engine;
+  engine.fem.pcg_iterations_per_frame = 200;
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);  // where four sub-volumes meet
+  struct VirtualFrame {
+    std::int64_t left_us = 1000;
+    bool ask() { return (left_us -= 10) > 0; }
+  };
+  const auto touched_iterations = [&](const StitchedVolume& v) {
+    std::vector<int> iterations;
+    for (int s = 0; s < v.sub_volume_count(); ++s) {
+      if (v.stepped(s)) iterations.push_back(v.last_step_stats(s).iterations);
+    }
+    return iterations;
+  };
+
+  StitchedVolume shared(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engine, stitching,
+                        &jobs);
+  VirtualFrame frame;
+  shared.step_sharing(
+      &probe, 1.0 / 60, [&frame] { return frame.ask(); }, [&frame] { return frame.left_us; });
+  ASSERT_EQ(shared.last_stitch_stats().sub_volumes_touched, 4);
+  // Four touched batches and room planned for one more: a fifth of 1,000 µs, 20 questions, each.
+  for (int iterations : touched_iterations(shared)) {
+    EXPECT_GE(iterations, 15);
+    EXPECT_LE(iterations, 25);
+  }
+  EXPECT_GE(frame.left_us, 0);
+
+  StitchedVolume asked_only(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engine, stitching,
+                            &jobs);
+  VirtualFrame frame_b;
+  asked_only.step_within(&probe, 1.0 / 60, [&frame_b] { return frame_b.ask(); });
+  const std::vector<int> greedy = touched_iterations(asked_only);
+  ASSERT_EQ(greedy.size(), 4u);
+  EXPECT_GT(greedy.front(), 60);
+  EXPECT_EQ(*std::min_element(greedy.begin(), greedy.end()), 1);
+}
+
+// The stitched region shows each node at the mean of its copies and reports the widest gap
+// between copies: kept up to date only where a sub-volume moved (the rest sleep or wait), it must
+// read as if recomputed from every copy. Here sub-volumes sleep, wake, step and wait over a swept
+// and lifted probe.
+TEST(StitchedVolume, ShownPositionsAndGapMatchEveryCopyAfterSelectiveFrames) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched = make_four_by_four(r, &jobs, /*selective=*/true);
+  const geometry::GridSpec& grid = r.grid;
+  int frames_with_sleepers = 0;
+  for (int f = 0; f < 120; ++f) {
+    const double x_mm = 5.0 + 0.15 * f;
+    const ProbeCollider probe = sphere_probe(x_mm, 6.0, f < 90 ? 1.5 : -5.0, 4.0);
+    stitched.step(&probe, 1.0 / 60);
+    frames_with_sleepers += stitched.last_stitch_stats().sub_volumes_asleep > 0;
+    std::vector<std::vector<Eigen::Vector3d>> copies(grid.node_count());
+    for (int s = 0; s < stitched.sub_volume_count(); ++s) {
+      const SubVolumeBox& box = stitched.box(s);
+      const auto x = stitched.sub_volume_engine(s).deformed_positions_mm();
+      for (int k = 0, l = 0; k < box.nodes.z(); ++k) {
+        for (int j = 0; j < box.nodes.y(); ++j) {
+          for (int i = 0; i < box.nodes.x(); ++i, ++l) {
+            const Eigen::Vector3i n = box.first_node + Eigen::Vector3i(i, j, k);
+            copies[grid.node_index(n.x(), n.y(), n.z())].push_back(x[l]);
+          }
+        }
+      }
+    }
+    const auto shown = stitched.deformed_positions_mm();
+    double worst_mm = 0.0;
+    double widest_gap_mm = 0.0;
+    for (int g = 0; g < grid.node_count(); ++g) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (const auto& x : copies[g]) sum += x;
+      worst_mm = std::max(worst_mm, (shown[g] - sum / copies[g].size()).norm());
+      for (std::size_t c = 0; c < copies[g].size(); ++c) {
+        for (std::size_t d = c + 1; d < copies[g].size(); ++d) {
+          widest_gap_mm = std::max(widest_gap_mm, (copies[g][c] - copies[g][d]).norm());
+        }
+      }
+    }
+    ASSERT_LT(worst_mm, 1e-12) << "frame " << f;
+    ASSERT_NEAR(stitched.last_stitch_stats().max_gap_mm, widest_gap_mm, 1e-12) << "frame " << f;
+  }
+  EXPECT_GT(frames_with_sleepers, 10) << "the test needs sleeping sub-volumes";
+}
+
 // The stitched implicit MSDS's sub-volumes take the frame's budget into their CG. A step the
 // budget cut short used to keep its unfinished velocity, and two sub-volumes stepping side by
 // side (each anchored to where the other's copies were) pumped their seam open: here 5.7 mm

@@ -89,6 +89,16 @@ class StitchedVolume final : public DeformationEngine {
   // when a due sub-volume was left for later or a stepped one's own step was cut short.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
+  // The time left for the budgeted work, µs, from the caller's clock (the library reads none);
+  // asked from the job system's threads, one at a time.
+  using TimeLeftUs = std::function<std::int64_t()>;
+  // step_within(), knowing the time left: when the touched sub-volumes step in more than one
+  // batch, every batch but the last stops its sub-volumes' own work once its even share of the
+  // time left at the first batch's start is spent, so the batches after it still have theirs.
+  // (Without it the first batch's CG took the whole share and each later batch ran its fixed
+  // work and one iteration past the deadline.) An empty time_left_us: exactly step_within().
+  EngineStepStats step_sharing(const ProbeCollider* probe, double frame_dt_s,
+                               const StepBudget& may_continue, const TimeLeftUs& time_left_us);
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return shown_; }
   // Every sub-volume continues from the grid's field (copies of a shared node alike), awake.
@@ -101,8 +111,9 @@ class StitchedVolume final : public DeformationEngine {
   const SubVolumeBox& box(int sub) const { return subs_[sub].box; }
   const DeformationEngine& sub_volume_engine(int sub) const { return *subs_[sub].engine; }
   bool asleep(int sub) const { return subs_[sub].asleep; }
-  // Whether the last frame stepped the sub-volume.
+  // Whether the last frame stepped the sub-volume, and its step's stats.
   bool stepped(int sub) const { return subs_[sub].stepped; }
+  const EngineStepStats& last_step_stats(int sub) const { return subs_[sub].last_stats; }
 
  private:
   struct SubVolume {
@@ -129,7 +140,7 @@ class StitchedVolume final : public DeformationEngine {
     bool asleep = false;
     bool stepped = false;
     bool touched = false;
-    bool corrected = false;  // moved by this frame's coarse correction
+    bool moved = false;  // this frame: stepped, or moved by a correction or a join
     EngineStepStats last_stats;
   };
   // A copy of a grid node: the sub-volume and its local node.
@@ -208,8 +219,16 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> schedule_;
   std::vector<std::uint8_t> due_;
   std::vector<Eigen::Vector3d> shown_;
+  // Per shared node (as shared_nodes_): the widest gap between its copies and the strongest pull
+  // on one, as of the last frame any of its copies moved.
+  std::vector<double> seam_gap_mm_;
+  std::vector<double> seam_force_mn_;
   Eigen::VectorXd u_;
   StitchStepStats stats_;
+  // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
+  std::int64_t after_steps_us_ = 0;
+  // Batches of sub-volumes beyond the touched ones that the last budgeted frame stepped.
+  int other_batches_fitted_ = 0;
 };
 
 }  // namespace ultrasim::sim
