@@ -101,6 +101,11 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
   }
   check_held_contact_settings(settings.contact, "LinearFem");
   stiffness_ = assemble_stiffness(mesh, tet_materials);
+  stiffness_blocks_ = detail::NodeBlockMatrix(stiffness_);
+  product_spills_.resize(detail::NodeBlockMatrix::kBands);
+  for (int band = 0; band < detail::NodeBlockMatrix::kBands; ++band) {
+    product_spills_[band].setZero(stiffness_blocks_.spill_rows(band));
+  }
   stiffness_diagonal_ = stiffness_.diagonal();
   inverse_diagonal_ = stiffness_diagonal_.cwiseInverse();
   anchor_stiffness_ = anchor_load_mn_ = Eigen::VectorXd::Zero(3 * n);
@@ -181,19 +186,13 @@ void LinearFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
 }
 
 void LinearFem::system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) const {
-  // The product is most of a CG iteration: rows in bands, two a thread (their costs differ
-  // where the mesh's stiffness rows are fuller).
-  const auto rows = static_cast<int>(stiffness_.rows());
-  const int bands = jobs_ != nullptr ? 2 * jobs_->thread_count() : 1;
-  hal::parallel_for(jobs_, bands, [&](int band) {
-    const int begin = static_cast<int>(static_cast<long>(rows) * band / bands);
-    const int end = static_cast<int>(static_cast<long>(rows) * (band + 1) / bands);
-    out.segment(begin, end - begin).noalias() = stiffness_.middleRows(begin, end - begin) * p;
-    if (has_anchors_) {
-      out.segment(begin, end - begin) +=
-          anchor_stiffness_.segment(begin, end - begin).cwiseProduct(p.segment(begin, end - begin));
-    }
+  // The product is most of a CG iteration: the matrix's bands of node rows, on the job system's
+  // threads when there is one (the same sum either way).
+  const Eigen::VectorXd* anchors = has_anchors_ ? &anchor_stiffness_ : nullptr;
+  hal::parallel_for(jobs_, detail::NodeBlockMatrix::kBands, [&](int band) {
+    stiffness_blocks_.times_band(band, p, anchors, out, product_spills_[band]);
   });
+  stiffness_blocks_.add_spills(product_spills_, out);
 }
 
 void LinearFem::apply_collider(const ProbeCollider* collider) {

@@ -107,8 +107,12 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   due_.assign(subs_.size(), 0);
   shown_ = mesh_.rest_positions_mm;
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
-  seam_gap_mm_.assign(shared_nodes_.size(), 0.0);
-  seam_force_mn_.assign(shared_nodes_.size(), 0.0);
+  seam_gap_mm_.assign(mesh_.node_count(), 0.0);
+  seam_force_mn_.assign(mesh_.node_count(), 0.0);
+  node_stamp_.assign(mesh_.node_count(), 0);
+  moved_subs_.reserve(subs_.size());
+  seams_to_update_.reserve(shared_nodes_.size());
+  for (const int g : shared_nodes_) update_seam(g);  // the fixed ones' midpoints, once
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
   }
@@ -292,53 +296,66 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
       return may_continue();
     };
   }
-  // A batch of touched sub-volumes before the last keeps the later batches' shares back. One
-  // pointer captured: no allocation.
+  // With the time left known, the frame's time is shared out evenly over the batches due that fit
+  // at their least cost (one CG iteration, the explicit MSDS's fixed steps: last frame's), the
+  // touched ones first; a batch stops its own work once its share is spent, and the time the work
+  // after the steps took last frame is kept back. Without sharing, the touched sub-volumes' CG
+  // took the whole frame and their neighbours never stepped: the seams between them opened (the
+  // large case's sweep-press: 0.4-2.5 mm; 0.13-0.17 shared). One pointer captured: no allocation.
   struct BatchShare {
     StitchedVolume* self;
     const StepBudget* frame;
     const TimeLeftUs* time_left_us;
     std::int64_t reserve_us;
-  } share{this, &may_continue, &time_left_us, 0};
+    std::int64_t left_at_first_question_us;  // -1 until the batch's first question
+  } share{this, &may_continue, &time_left_us, 0, -1};
   const StepBudget share_budget = [&share] {
     std::lock_guard lock(share.self->budget_mutex_);
-    return (*share.frame)() && (*share.time_left_us)() > share.reserve_us;
+    const std::int64_t left_us = (*share.time_left_us)();
+    if (share.left_at_first_question_us < 0) share.left_at_first_question_us = left_us;
+    return (*share.frame)() && left_us > share.reserve_us;
   };
   const int scheduled = static_cast<int>(schedule_.size());
-  // The time is shared evenly over the touched sub-volumes' batches and the others' that may
-  // fit: one more than fitted last frame (the touched sub-volumes' CG taking all of it left their
-  // neighbours unstepped, and the seams between them opened up to 2.5 mm on the large case).
   const int touched_batches = (touched + batch - 1) / batch;
-  const int other_batches =
-      std::min((scheduled - touched + batch - 1) / batch, other_batches_fitted_ + 1);
-  const int due_batches = touched_batches + other_batches;
+  const int other_batches = (scheduled - touched + batch - 1) / batch;
   const bool shares = may_continue && time_left_us;
-  // The work after the steps (joins, seams, the shown positions) as long as last frame's.
   const std::int64_t left_at_start_us = shares ? time_left_us() - after_steps_us_ : 0;
-  std::int64_t last_batch_us = 0;
+  const int batches_that_fit =
+      batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us / batch_cost_us_) : 1;
+  const int due_batches =
+      touched_batches + std::clamp(batches_that_fit - touched_batches, 0, other_batches);
+  std::int64_t batch_cost_us = 0;
   int next = 0;
   int b = 0;
   const auto step_next_batch = [&](int end) {
     const int count = std::min(batch, end - next);
     const int batches_after = std::max(due_batches - 1 - b, 0);
-    share.reserve_us = after_steps_us_ + left_at_start_us * batches_after / due_batches;
+    share.reserve_us =
+        after_steps_us_ + std::max<std::int64_t>(left_at_start_us, 0) * batches_after / due_batches;
+    share.left_at_first_question_us = -1;
     const std::int64_t left_before_us = shares ? time_left_us() : 0;
     step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true,
                shares ? share_budget : sub_budget);
-    if (shares) last_batch_us = left_before_us - time_left_us();
+    if (shares) {
+      // Up to the first question, or the whole batch if none asked (no further work wanted).
+      const std::int64_t left_after_us =
+          share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : time_left_us();
+      batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
+    }
     next += count;
     ++b;
   };
   while (next < touched) step_next_batch(touched);
-  // A further batch only if one as long as the last still ends in time.
+  // A planned batch while time is left (its share was sized to fit it); a further one only if one
+  // at its least cost still ends in time.
   const auto another_batch_fits = [&] {
     if (!may_continue) return true;
     if (!shares) return may_continue();
     const std::lock_guard lock(budget_mutex_);
-    return time_left_us() > last_batch_us + after_steps_us_;
+    return time_left_us() > (b < due_batches ? 0 : batch_cost_us_) + after_steps_us_;
   };
   while (next < scheduled && another_batch_fits()) step_next_batch(scheduled);
-  other_batches_fitted_ = b - touched_batches;
+  if (shares) batch_cost_us_ = batch_cost_us;
   for (int part = 1; part < parts; ++part) {
     for (int first = 0; first < next; first += batch) {
       step_batch(std::span(schedule_).subspan(first, std::min(batch, next - first)), probe,
@@ -483,7 +500,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
                                 double frame_dt_s, bool first_part, const StepBudget& budget) {
   // Anchors first, from positions no sub-volume of the batch has moved yet: the batch's steps
   // are then independent and run in parallel.
-  for (int s : subs) refresh_anchors(s);
+  hal::parallel_for(jobs_, static_cast<int>(subs.size()), [&](int i) { refresh_anchors(subs[i]); });
   auto step_one = [&](int i) {
     SubVolume& sub = subs_[subs[i]];
     if (first_part) {
@@ -561,29 +578,43 @@ void StitchedVolume::revert_frame(std::span<const int> stepped) {
 }
 
 void StitchedVolume::join_held_copies() {
-  for (int g : shared_nodes_) {
-    if (fixed_[g]) continue;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::AlignedBox3d spread;
-    int held = 0;
-    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      if (!subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) continue;
-      const Eigen::Vector3d x = copy_position(copies_[c]);
-      sum += x;
-      spread.extend(x);
-      ++held;
+  // A copy the probe holds lies on it, in a sub-volume within its reach, which stepped: only
+  // their seam nodes are looked at (going over every seam node's copies took 0.3 ms a frame on
+  // the large case).
+  const int stamp = ++node_stamp_counter_;
+  for (auto& sub : subs_) {
+    if (!sub.stepped) continue;
+    for (const int local : sub.shared_local) {
+      if (!sub.engine->holds_node(local)) continue;
+      const int g = sub.global_node[local];
+      if (node_stamp_[g] == stamp) continue;
+      node_stamp_[g] = stamp;
+      join_held_copies_of(g);
     }
-    // Copies caught this close together are left alone: under the stick contact which nodes a
-    // probe catches depends on where each was, and moving them for nothing visible changed the
-    // stitched PCG FEM's rim from 1.7 % to 4.4 % of one piece's peak.
-    if (held < 2 || spread.diagonal().norm() <= kJoinHeldCopiesMm) continue;
-    const Eigen::Vector3d mean = sum / held;
-    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      SubVolume& sub = subs_[copies_[c].sub];
-      sub.engine->move_held_node_mm(copies_[c].local, mean);  // leaves a free copy where it is
-      sub.positions_mm = sub.engine->deformed_positions_mm();
-      sub.moved = true;
-    }
+  }
+}
+
+void StitchedVolume::join_held_copies_of(int g) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::AlignedBox3d spread;
+  int held = 0;
+  for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+    if (!subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) continue;
+    const Eigen::Vector3d x = copy_position(copies_[c]);
+    sum += x;
+    spread.extend(x);
+    ++held;
+  }
+  // Copies caught this close together are left alone: under the stick contact which nodes a
+  // probe catches depends on where each was, and moving them for nothing visible changed the
+  // stitched PCG FEM's rim from 1.7 % to 4.4 % of one piece's peak.
+  if (held < 2 || spread.diagonal().norm() <= kJoinHeldCopiesMm) return;
+  const Eigen::Vector3d mean = sum / held;
+  for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+    SubVolume& sub = subs_[copies_[c].sub];
+    sub.engine->move_held_node_mm(copies_[c].local, mean);  // leaves a free copy where it is
+    sub.positions_mm = sub.engine->deformed_positions_mm();
+    sub.moved = true;
   }
 }
 
@@ -629,9 +660,34 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
+void StitchedVolume::update_seam(int g) {
+  const int begin = copies_begin_[g], end = copies_begin_[g + 1];
+  const Eigen::Vector3d sum = copies_sum(g);
+  const int count = end - begin;
+  shown_[g] = sum / count;  // the published midpoint: no gap shows
+  u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
+  double gap = 0.0;
+  double node_force = 0.0;
+  for (int c = begin; c < end && !fixed_[g]; ++c) {
+    const Eigen::Vector3d x = copy_position(copies_[c]);
+    for (int d = c + 1; d < end; ++d) gap = std::max(gap, (copy_position(copies_[d]) - x).norm());
+    // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+    node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
+  }
+  seam_gap_mm_[g] = gap;
+  seam_force_mn_[g] = node_force;
+}
+
 void StitchedVolume::finish_frame() {
-  for (auto& sub : subs_) {
-    if (!sub.moved) continue;
+  // On the job system: the large case's frame spent 0.8 ms here on one thread. A seam none of
+  // whose copies moved keeps last frame's midpoint, gap and pull (on the large case most seams
+  // lie between sleeping sub-volumes; fixed seam nodes never move, their midpoints set once).
+  moved_subs_.clear();
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    if (subs_[s].moved) moved_subs_.push_back(s);
+  }
+  hal::parallel_for(jobs_, static_cast<int>(moved_subs_.size()), [&](int i) {
+    SubVolume& sub = subs_[moved_subs_[i]];
     const auto x = sub.engine->deformed_positions_mm();
     for (auto& b : sub.block_bounds) b.setEmpty();
     double motion_squared = 0.0;
@@ -640,57 +696,52 @@ void StitchedVolume::finish_frame() {
       motion_squared =
           std::max(motion_squared, (x[l] - sub.previous_positions_mm[l]).squaredNorm());
       const int g = sub.global_node[l];
-      if (copies_begin_[g + 1] - copies_begin_[g] == 1) shown_[g] = x[l];
+      if (copies_begin_[g + 1] - copies_begin_[g] == 1) {
+        shown_[g] = x[l];  // a node of this sub-volume alone
+        u_.segment<3>(3 * g) = x[l] - mesh_.rest_positions_mm[g];
+      }
     }
     for (std::size_t b = 0; b < sub.block_bounds.size(); ++b) {
       sub.block_center_mm[b] = sub.block_bounds[b].center();
       sub.block_half_diagonal_mm[b] = 0.5 * sub.block_bounds[b].diagonal().norm();
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
+  });
+  const int stamp = ++node_stamp_counter_;
+  seams_to_update_.clear();
+  for (const int s : moved_subs_) {
+    const SubVolume& sub = subs_[s];
+    for (const int local : sub.shared_local) {
+      const int g = sub.global_node[local];
+      if (node_stamp_[g] == stamp) continue;
+      node_stamp_[g] = stamp;
+      seams_to_update_.push_back(g);
+    }
   }
-  // A seam none of whose copies moved keeps last frame's midpoint, gap and pull: on the large
-  // case most seams lie between sleeping sub-volumes, and going over every copy's position took a
-  // millisecond a frame.
-  for (auto& sub : subs_) sub.max_seam_force_mn = 0.0;
+  const auto seams = static_cast<int>(seams_to_update_.size());
+  const int seam_tasks = jobs_ != nullptr ? 2 * jobs_->thread_count() : 1;
+  hal::parallel_for(jobs_, seam_tasks, [&](int task) {
+    const int begin = static_cast<int>(static_cast<long>(seams) * task / seam_tasks);
+    const int end = static_cast<int>(static_cast<long>(seams) * (task + 1) / seam_tasks);
+    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i]);
+  });
+  // Every side of a seam feels its strongest pull: where three copies agree and the fourth does
+  // not, the three must wake too, or the fourth is held deformed by sleepers for ever.
+  hal::parallel_for(jobs_, sub_volume_count(), [&](int s) {
+    SubVolume& sub = subs_[s];
+    sub.max_seam_force_mn = 0.0;
+    sub.max_seam_gap_mm = 0.0;
+    for (const int local : sub.shared_local) {
+      const int g = sub.global_node[local];
+      sub.max_seam_force_mn = std::max(sub.max_seam_force_mn, seam_force_mn_[g]);
+      sub.max_seam_gap_mm = std::max(sub.max_seam_gap_mm, seam_gap_mm_[g]);
+    }
+  });
   stats_.max_gap_mm = 0.0;
   stats_.max_seam_force_mn = 0.0;
-  for (std::size_t i = 0; i < shared_nodes_.size(); ++i) {
-    const int g = shared_nodes_[i];
-    const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-    const bool moved = std::any_of(copies_.begin() + begin, copies_.begin() + end,
-                                   [this](const Copy& c) { return subs_[c.sub].moved; });
-    if (moved) {
-      const Eigen::Vector3d sum = copies_sum(g);
-      const int count = end - begin;
-      shown_[g] = sum / count;  // the published midpoint: no gap shows
-      double gap = 0.0;
-      double node_force = 0.0;
-      for (int c = begin; c < end && !fixed_[g]; ++c) {
-        const Eigen::Vector3d x = copy_position(copies_[c]);
-        for (int d = c + 1; d < end; ++d) {
-          gap = std::max(gap, (copy_position(copies_[d]) - x).norm());
-        }
-        // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
-        node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
-      }
-      seam_gap_mm_[i] = gap;
-      seam_force_mn_[i] = node_force;
-    }
-    stats_.max_gap_mm = std::max(stats_.max_gap_mm, seam_gap_mm_[i]);
-    stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, seam_force_mn_[i]);
-    // Every side of a seam feels its strongest pull: where three copies agree and the fourth
-    // does not, the three must wake too, or the fourth is held deformed by sleepers for ever.
-    for (int c = begin; c < end; ++c) {
-      double& sub_force = subs_[copies_[c].sub].max_seam_force_mn;
-      sub_force = std::max(sub_force, seam_force_mn_[i]);
-    }
-  }
-  // Only a moved sub-volume's nodes (its seams' midpoints among them) changed.
   for (const auto& sub : subs_) {
-    if (!sub.moved) continue;
-    for (const int g : sub.global_node) {
-      u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
-    }
+    stats_.max_gap_mm = std::max(stats_.max_gap_mm, sub.max_seam_gap_mm);
+    stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, sub.max_seam_force_mn);
   }
   stats_.sub_volumes_asleep = 0;
   for (auto& sub : subs_) {

@@ -507,10 +507,11 @@ TEST(StitchedVolume, TouchedBatchesShareTheTimeLeft) {
   shared.step_sharing(
       &probe, 1.0 / 60, [&frame] { return frame.ask(); }, [&frame] { return frame.left_us; });
   ASSERT_EQ(shared.last_stitch_stats().sub_volumes_touched, 4);
-  // Four touched batches and room planned for one more: a fifth of 1,000 µs, 20 questions, each.
+  // Four touched batches (no batch's least cost known yet, so no other one planned): a quarter
+  // of 1,000 µs, 25 questions, each.
   for (int iterations : touched_iterations(shared)) {
-    EXPECT_GE(iterations, 15);
-    EXPECT_LE(iterations, 25);
+    EXPECT_GE(iterations, 22);
+    EXPECT_LE(iterations, 28);
   }
   EXPECT_GE(frame.left_us, 0);
 
@@ -553,12 +554,15 @@ TEST(StitchedVolume, ShownPositionsAndGapMatchEveryCopyAfterSelectiveFrames) {
       }
     }
     const auto shown = stitched.deformed_positions_mm();
+    const Eigen::VectorXd& u = stitched.displacements_mm();
     double worst_mm = 0.0;
     double widest_gap_mm = 0.0;
     for (int g = 0; g < grid.node_count(); ++g) {
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       for (const auto& x : copies[g]) sum += x;
       worst_mm = std::max(worst_mm, (shown[g] - sum / copies[g].size()).norm());
+      const Eigen::Vector3d rest = stitched.mesh().rest_positions_mm[g];
+      worst_mm = std::max(worst_mm, (u.segment<3>(3 * g) - (shown[g] - rest)).norm());
       for (std::size_t c = 0; c < copies[g].size(); ++c) {
         for (std::size_t d = c + 1; d < copies[g].size(); ++d) {
           widest_gap_mm = std::max(widest_gap_mm, (copies[g][c] - copies[g][d]).norm());

@@ -10,6 +10,7 @@
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/node_block_matrix.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
 #include "ultrasim/sim/settings.hpp"
 #include "ultrasim/sim/sliding_nodes.hpp"
@@ -121,7 +122,8 @@ class LinearFem final : public DeformationEngine {
   FemStepStats run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
   // Stores each contact node's push along the probe's outward normal; returns |total| in N.
   double update_contact_forces();
-  // out = (K + A) p, A the anchor springs' diagonal stiffness; in row bands on the job system.
+  // out = (K + A) p, A the anchor springs' diagonal stiffness; in row bands on the job system,
+  // the same to the last bit on any number of threads. out must have K's rows.
   void system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) const;
   void update_deformed();
 
@@ -142,6 +144,8 @@ class LinearFem final : public DeformationEngine {
   Eigen::VectorXd last_good_u_;
   int fixed_count_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness_;
+  detail::NodeBlockMatrix stiffness_blocks_;             // the same K, for the CG's products
+  mutable std::vector<Eigen::VectorXd> product_spills_;  // per band of stiffness_blocks_
   Eigen::VectorXd stiffness_diagonal_;
   Eigen::VectorXd inverse_diagonal_;  // of K + A
   // Anchor springs: per DOF their stiffness (mN/mm) and k (target − rest) (mN).

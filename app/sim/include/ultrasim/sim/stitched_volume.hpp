@@ -92,11 +92,13 @@ class StitchedVolume final : public DeformationEngine {
   // The time left for the budgeted work, µs, from the caller's clock (the library reads none);
   // asked from the job system's threads, one at a time.
   using TimeLeftUs = std::function<std::int64_t()>;
-  // step_within(), knowing the time left: when the touched sub-volumes step in more than one
-  // batch, every batch but the last stops its sub-volumes' own work once its even share of the
-  // time left at the first batch's start is spent, so the batches after it still have theirs.
-  // (Without it the first batch's CG took the whole share and each later batch ran its fixed
-  // work and one iteration past the deadline.) An empty time_left_us: exactly step_within().
+  // step_within(), knowing the time left: the time (less what the work after the steps took last
+  // frame) is shared evenly over the touched sub-volumes' batches and as many of the other due
+  // ones as fit at last frame's least batch cost (one CG iteration); each batch stops its own
+  // work once its share is spent, and a batch beyond those planned starts only if one at that
+  // cost still ends in time. (Without it the first touched batch's CG took the whole share, each
+  // later batch ran its fixed work and one iteration past the deadline, and no neighbour of the
+  // touched sub-volumes stepped.) An empty time_left_us: exactly step_within().
   EngineStepStats step_sharing(const ProbeCollider* probe, double frame_dt_s,
                                const StepBudget& may_continue, const TimeLeftUs& time_left_us);
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
@@ -135,6 +137,7 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<double> block_half_diagonal_mm;
     std::vector<Eigen::AlignedBox3d> block_bounds;
     double max_seam_force_mn = 0.0;
+    double max_seam_gap_mm = 0.0;
     double last_motion_mm = 0.0;
     int frames_waiting = 0;  // since it last stepped
     bool asleep = false;
@@ -188,6 +191,9 @@ class StitchedVolume final : public DeformationEngine {
   // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
+  void join_held_copies_of(int grid_node);
+  // A shared node's midpoint, gap and pull from its copies.
+  void update_seam(int grid_node);
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
   // Σ of the positions of grid node g's copies.
@@ -219,16 +225,21 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> schedule_;
   std::vector<std::uint8_t> due_;
   std::vector<Eigen::Vector3d> shown_;
-  // Per shared node (as shared_nodes_): the widest gap between its copies and the strongest pull
-  // on one, as of the last frame any of its copies moved.
+  // Per grid node: the widest gap between its copies and the strongest pull on one, as of the
+  // last frame any of its copies moved (0 where not shared); and a stamp, so that a loop over
+  // sub-volumes' seam nodes visits each grid node once.
   std::vector<double> seam_gap_mm_;
   std::vector<double> seam_force_mn_;
+  std::vector<int> node_stamp_;
+  int node_stamp_counter_ = 0;
+  std::vector<int> moved_subs_;       // per frame, sized once
+  std::vector<int> seams_to_update_;  // per frame, sized once
   Eigen::VectorXd u_;
   StitchStepStats stats_;
   // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
   std::int64_t after_steps_us_ = 0;
-  // Batches of sub-volumes beyond the touched ones that the last budgeted frame stepped.
-  int other_batches_fitted_ = 0;
+  // The last budgeted frame's costliest batch at its least (up to its first question), µs.
+  std::int64_t batch_cost_us_ = 0;
 };
 
 }  // namespace ultrasim::sim
