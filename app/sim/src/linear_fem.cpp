@@ -101,9 +101,12 @@ LinearFem::LinearFem(const geometry::TetMesh& mesh, std::span<const Material> te
   }
   check_held_contact_settings(settings.contact, "LinearFem");
   stiffness_ = assemble_stiffness(mesh, tet_materials);
-  stiffness_blocks_ = detail::NodeBlockMatrix(stiffness_);
-  product_spills_.resize(detail::NodeBlockMatrix::kBands);
-  for (int band = 0; band < detail::NodeBlockMatrix::kBands; ++band) {
+  // Two bands a thread (their costs differ where the mesh's rows are fuller), and never fewer
+  // than on two threads: one thread then gives the two threads' answer to the last bit.
+  stiffness_blocks_ = detail::NodeBlockMatrix(
+      stiffness_, 2 * std::max(2, jobs_ != nullptr ? jobs_->thread_count() : 1));
+  product_spills_.resize(stiffness_blocks_.bands());
+  for (int band = 0; band < stiffness_blocks_.bands(); ++band) {
     product_spills_[band].setZero(stiffness_blocks_.spill_rows(band));
   }
   stiffness_diagonal_ = stiffness_.diagonal();
@@ -189,7 +192,7 @@ void LinearFem::system_times(const Eigen::VectorXd& p, Eigen::VectorXd& out) con
   // The product is most of a CG iteration: the matrix's bands of node rows, on the job system's
   // threads when there is one (the same sum either way).
   const Eigen::VectorXd* anchors = has_anchors_ ? &anchor_stiffness_ : nullptr;
-  hal::parallel_for(jobs_, detail::NodeBlockMatrix::kBands, [&](int band) {
+  hal::parallel_for(jobs_, stiffness_blocks_.bands(), [&](int band) {
     stiffness_blocks_.times_band(band, p, anchors, out, product_spills_[band]);
   });
   stiffness_blocks_.add_spills(product_spills_, out);

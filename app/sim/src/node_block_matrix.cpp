@@ -6,7 +6,10 @@
 
 namespace ultrasim::sim::detail {
 
-NodeBlockMatrix::NodeBlockMatrix(const Eigen::SparseMatrix<double, Eigen::RowMajor>& k) {
+NodeBlockMatrix::NodeBlockMatrix(const Eigen::SparseMatrix<double, Eigen::RowMajor>& k, int bands) {
+  if (bands < 1) {
+    throw std::invalid_argument("NodeBlockMatrix: " + std::to_string(bands) + " bands");
+  }
   if (k.rows() != k.cols() || k.rows() % 3 != 0) {
     throw std::invalid_argument("NodeBlockMatrix: " + std::to_string(k.rows()) + " × " +
                                 std::to_string(k.cols()) +
@@ -43,10 +46,10 @@ NodeBlockMatrix::NodeBlockMatrix(const Eigen::SparseMatrix<double, Eigen::RowMaj
     block_column_.insert(block_column_.end(), columns.begin(), columns.end());
     row_begin_.push_back(static_cast<int>(block_column_.size()));
   }
-  for (int band = 0; band <= kBands; ++band) {
-    band_begin_.push_back(static_cast<int>(static_cast<long>(nodes) * band / kBands));
+  for (int band = 0; band <= bands; ++band) {
+    band_begin_.push_back(static_cast<int>(static_cast<long>(nodes) * band / bands));
   }
-  for (int band = 0; band < kBands; ++band) {
+  for (int band = 0; band < bands; ++band) {
     int end = band_begin_[band + 1];
     for (int i = band_begin_[band]; i < band_begin_[band + 1]; ++i) {
       for (int b = row_begin_[i]; b < row_begin_[i + 1]; ++b)
@@ -99,7 +102,7 @@ void NodeBlockMatrix::times_band(int band, const Eigen::VectorXd& x, const Eigen
 
 void NodeBlockMatrix::add_spills(const std::vector<Eigen::VectorXd>& spills,
                                  Eigen::VectorXd& y) const {
-  for (int band = 0; band < kBands; ++band) {
+  for (int band = 0; band < bands(); ++band) {
     y.segment(3 * band_begin_[band + 1], spill_rows(band)) += spills[band];
   }
 }

@@ -109,7 +109,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
   seam_gap_mm_.assign(mesh_.node_count(), 0.0);
   seam_force_mn_.assign(mesh_.node_count(), 0.0);
-  node_stamp_.assign(mesh_.node_count(), 0);
+  node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
   for (const int g : shared_nodes_) update_seam(g);  // the fixed ones' midpoints, once
@@ -321,9 +321,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const bool shares = may_continue && time_left_us;
   const std::int64_t left_at_start_us = shares ? time_left_us() - after_steps_us_ : 0;
   const int batches_that_fit =
-      batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us / batch_cost_us_) : 1;
-  const int due_batches =
-      touched_batches + std::clamp(batches_that_fit - touched_batches, 0, other_batches);
+      shares && batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us / batch_cost_us_) : 1;
+  // At least one: a frame with nothing touched still shares its time among those that run.
+  const int due_batches = std::max(
+      1, touched_batches + std::clamp(batches_that_fit - touched_batches, 0, other_batches));
   std::int64_t batch_cost_us = 0;
   int next = 0;
   int b = 0;
@@ -578,12 +579,13 @@ void StitchedVolume::revert_frame(std::span<const int> stepped) {
 }
 
 void StitchedVolume::join_held_copies() {
-  // A copy the probe holds lies on it, in a sub-volume within its reach, which stepped: only
-  // their seam nodes are looked at (going over every seam node's copies took 0.3 ms a frame on
-  // the large case).
-  const int stamp = ++node_stamp_counter_;
+  // Held copies that moved this frame (stepped, or moved by the coarse correction) are joined
+  // with their twins, held or not moved alike: only the moved sub-volumes' seam nodes are looked
+  // at (going over every seam node's copies took 0.3 ms a frame on the large case); copies that
+  // did not move were joined when they last did.
+  const std::uint32_t stamp = next_node_stamp();
   for (auto& sub : subs_) {
-    if (!sub.stepped) continue;
+    if (!sub.moved) continue;
     for (const int local : sub.shared_local) {
       if (!sub.engine->holds_node(local)) continue;
       const int g = sub.global_node[local];
@@ -660,6 +662,14 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
+std::uint32_t StitchedVolume::next_node_stamp() {
+  if (++node_stamp_counter_ == 0) {  // wrapped (after years at 60 Hz): no stale stamp may match
+    std::fill(node_stamp_.begin(), node_stamp_.end(), 0u);
+    node_stamp_counter_ = 1;
+  }
+  return node_stamp_counter_;
+}
+
 void StitchedVolume::update_seam(int g) {
   const int begin = copies_begin_[g], end = copies_begin_[g + 1];
   const Eigen::Vector3d sum = copies_sum(g);
@@ -707,7 +717,7 @@ void StitchedVolume::finish_frame() {
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
   });
-  const int stamp = ++node_stamp_counter_;
+  const std::uint32_t stamp = next_node_stamp();
   seams_to_update_.clear();
   for (const int s : moved_subs_) {
     const SubVolume& sub = subs_[s];

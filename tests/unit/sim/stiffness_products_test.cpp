@@ -27,7 +27,7 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> two_material_stiffness() {
 // (plus a diagonal), the same to the last bit in every order; only the upper blocks stored.
 TEST(NodeBlockMatrix, MatchesEigensProductWhateverOrderTheBandsRunIn) {
   const Eigen::SparseMatrix<double, Eigen::RowMajor> k = two_material_stiffness();
-  const detail::NodeBlockMatrix blocks(k);
+  const detail::NodeBlockMatrix blocks(k, 4);
   ASSERT_EQ(blocks.block_rows(), k.rows() / 3);
   const auto nodes = static_cast<int>(k.rows() / 3);
   // 9 entries a block: the upper triangle and the diagonal blocks, about half of K.
@@ -46,7 +46,7 @@ TEST(NodeBlockMatrix, MatchesEigensProductWhateverOrderTheBandsRunIn) {
     Eigen::VectorXd first;
     for (const std::array<int, 4>& order : {std::array{0, 1, 2, 3}, std::array{3, 1, 0, 2}}) {
       Eigen::VectorXd y = Eigen::VectorXd::Constant(k.rows(), 99.0);  // stale values
-      std::vector<Eigen::VectorXd> spills(detail::NodeBlockMatrix::kBands);
+      std::vector<Eigen::VectorXd> spills(blocks.bands());
       for (int band : order) blocks.times_band(band, x, diagonal, y, spills[band]);
       blocks.add_spills(spills, y);
       EXPECT_LE((y - expected).cwiseAbs().maxCoeff(), tolerance);
@@ -58,8 +58,9 @@ TEST(NodeBlockMatrix, MatchesEigensProductWhateverOrderTheBandsRunIn) {
 
 TEST(NodeBlockMatrix, RejectsAMatrixNotMadeOfNodeBlocks) {
   using Matrix = Eigen::SparseMatrix<double, Eigen::RowMajor>;
-  EXPECT_THROW(detail::NodeBlockMatrix(Matrix(7, 7)), std::invalid_argument);
-  EXPECT_THROW(detail::NodeBlockMatrix(Matrix(6, 9)), std::invalid_argument);
+  EXPECT_THROW(detail::NodeBlockMatrix(Matrix(7, 7), 4), std::invalid_argument);
+  EXPECT_THROW(detail::NodeBlockMatrix(Matrix(6, 9), 4), std::invalid_argument);
+  EXPECT_THROW(detail::NodeBlockMatrix(Matrix(6, 6), 0), std::invalid_argument);
 }
 
 TEST(SymmetricTimesSparseVector, MatchesTheFullProductOnAFemStiffness) {

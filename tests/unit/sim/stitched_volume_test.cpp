@@ -525,6 +525,33 @@ TEST(StitchedVolume, TouchedBatchesShareTheTimeLeft) {
   EXPECT_EQ(*std::min_element(greedy.begin(), greedy.end()), 1);
 }
 
+// Frames with nothing touched (the probe lifted) still step the awake sub-volumes, shared or not,
+// after shared frames that measured a batch's cost (here each look at the clock costs 1 µs, so
+// a cost is measured): a plan of no batch at all divided by zero.
+TEST(StitchedVolume, FramesWithNothingTouchedStepTheAwakeAfterSharedFrames) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{}, stitching,
+                   &jobs);
+  std::int64_t left_us = 0;
+  const auto ask = [&left_us] { return (left_us -= 10) > 0; };
+  const auto time_left = [&left_us] { return left_us -= 1; };
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);
+  for (int f = 0; f < 3; ++f) {
+    left_us = 2000;
+    v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+  }
+  v.step(nullptr, 1.0 / 60);
+  EXPECT_EQ(v.last_stitch_stats().sub_volumes_touched, 0);
+  EXPECT_GT(v.last_stitch_stats().sub_volumes_stepped, 0) << "the lifted probe leaves them moving";
+  left_us = 2000;
+  v.step_sharing(nullptr, 1.0 / 60, ask, time_left);
+  EXPECT_GT(v.last_stitch_stats().sub_volumes_stepped, 0);
+  EXPECT_TRUE(v.displacements_mm().allFinite());
+}
+
 // The stitched region shows each node at the mean of its copies and reports the widest gap
 // between copies: kept up to date only where a sub-volume moved (the rest sleep or wait), it must
 // read as if recomputed from every copy. Here sub-volumes sleep, wake, step and wait over a swept

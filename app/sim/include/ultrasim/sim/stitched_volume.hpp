@@ -194,6 +194,8 @@ class StitchedVolume final : public DeformationEngine {
   void join_held_copies_of(int grid_node);
   // A shared node's midpoint, gap and pull from its copies.
   void update_seam(int grid_node);
+  // A stamp no grid node carries yet (node_stamp_).
+  std::uint32_t next_node_stamp();
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
   // Σ of the positions of grid node g's copies.
@@ -230,8 +232,8 @@ class StitchedVolume final : public DeformationEngine {
   // sub-volumes' seam nodes visits each grid node once.
   std::vector<double> seam_gap_mm_;
   std::vector<double> seam_force_mn_;
-  std::vector<int> node_stamp_;
-  int node_stamp_counter_ = 0;
+  std::vector<std::uint32_t> node_stamp_;
+  std::uint32_t node_stamp_counter_ = 0;
   std::vector<int> moved_subs_;       // per frame, sized once
   std::vector<int> seams_to_update_;  // per frame, sized once
   Eigen::VectorXd u_;
