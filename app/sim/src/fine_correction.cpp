@@ -25,16 +25,18 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
   for (std::size_t s = 0; s < engines.size(); ++s) {
     Sub& sub = subs_[s];
     sub.grid_node = grid_nodes[s];
-    sub.stiffness = engines[s]->rest_stiffness_mn_per_mm();
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness =
+        engines[s]->rest_stiffness_mn_per_mm();
     const int local = static_cast<int>(sub.grid_node.size());
-    if (sub.stiffness.rows() != 3 * local) {
+    if (stiffness.rows() != 3 * local || stiffness.cols() != 3 * local) {
       throw std::invalid_argument("FineCorrection: an engine's stiffness does not fit its nodes");
     }
+    sub.stiffness = detail::NodeBlockMatrix(stiffness, 1);
     for (int l = 0; l < local; ++l) {
       const int g = sub.grid_node[l];
       if (g < 0 || g >= n) throw std::invalid_argument("FineCorrection: a node off the grid");
       ++copy_count[g];
-      for (int d = 0; d < 3; ++d) diagonal[3 * g + d] += sub.stiffness.coeff(3 * l + d, 3 * l + d);
+      for (int d = 0; d < 3; ++d) diagonal[3 * g + d] += stiffness.coeff(3 * l + d, 3 * l + d);
     }
     sub.local_in = Eigen::VectorXd::Zero(3 * local);
     sub.local_out = Eigen::VectorXd::Zero(3 * local);
@@ -80,7 +82,7 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
     for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
       sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
     }
-    sub.local_out.noalias() = sub.stiffness * sub.local_in;
+    sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill[0]);
   };
   hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), product);
   gather(q, true);

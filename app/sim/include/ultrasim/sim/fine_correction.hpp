@@ -9,6 +9,7 @@
 
 #include "ultrasim/hal/job_system.hpp"
 #include "ultrasim/sim/engine.hpp"
+#include "ultrasim/sim/node_block_matrix.hpp"
 #include "ultrasim/sim/sliding_nodes.hpp"
 
 namespace ultrasim::sim {
@@ -57,8 +58,11 @@ class FineCorrection {
  private:
   struct Sub {
     std::vector<int> grid_node;  // per local node
-    Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness;
-    Eigen::VectorXd local_in, local_out;  // 3 × local nodes: scratch
+    // The engine's rest stiffness in node blocks (its products stream half the bytes), one band:
+    // a sub-volume's product is one task of the job system.
+    detail::NodeBlockMatrix stiffness;
+    std::vector<Eigen::VectorXd> spill{1};  // of the one band: empty
+    Eigen::VectorXd local_in, local_out;    // 3 × local nodes: scratch
   };
   struct Copy {
     int sub = 0;
