@@ -253,10 +253,10 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
     // The touched sub-volumes' batches share the time out (StitchedVolume::step_sharing).
     const auto time_left_us = [&batches] { return batches.deadline_us - batches.clock.now_us(); };
     outcome.sim = stitched_->step_sharing(probe, frame_dt_s, budget, time_left_us);
+    outcome.stitch = stitched_->last_stitch_stats();
   } else {
     outcome.sim = engine_->step_within(probe, frame_dt_s, budget);
   }
-  if (stitched_ != nullptr) outcome.stitch = stitched_->last_stitch_stats();
   if (!outcome.probe_held) {
     // Kept last good because the budget ran out before smaller steps were tried is no verdict
     // on the press: the next frame tries again, as after any failed try.

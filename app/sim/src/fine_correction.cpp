@@ -82,7 +82,7 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
     for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
       sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
     }
-    sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill[0]);
+    sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill);
   };
   hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), product);
   gather(q, true);

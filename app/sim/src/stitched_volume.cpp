@@ -578,22 +578,33 @@ void StitchedVolume::revert_frame(std::span<const int> stepped) {
   hal::parallel_for(jobs_, static_cast<int>(stepped.size()), revert);
 }
 
+template <typename Keep, typename Visit>
+void StitchedVolume::for_each_moved_seam_node(Keep keep, Visit visit) {
+  if (++node_stamp_counter_ == 0) {  // wrapped (after years at 60 Hz): no stale stamp may match
+    std::fill(node_stamp_.begin(), node_stamp_.end(), 0u);
+    node_stamp_counter_ = 1;
+  }
+  const std::uint32_t stamp = node_stamp_counter_;
+  for (const auto& sub : subs_) {
+    if (!sub.moved) continue;  // read as the loop goes: visit may move a later one
+    for (const int local : sub.shared_local) {
+      if (!keep(sub, local)) continue;
+      const int g = sub.global_node[local];
+      if (node_stamp_[g] == stamp) continue;
+      node_stamp_[g] = stamp;
+      visit(g);
+    }
+  }
+}
+
 void StitchedVolume::join_held_copies() {
   // Held copies that moved this frame (stepped, or moved by the coarse correction) are joined
   // with their twins, held or not moved alike: only the moved sub-volumes' seam nodes are looked
   // at (going over every seam node's copies took 0.3 ms a frame on the large case); copies that
   // did not move were joined when they last did.
-  const std::uint32_t stamp = next_node_stamp();
-  for (auto& sub : subs_) {
-    if (!sub.moved) continue;
-    for (const int local : sub.shared_local) {
-      if (!sub.engine->holds_node(local)) continue;
-      const int g = sub.global_node[local];
-      if (node_stamp_[g] == stamp) continue;
-      node_stamp_[g] = stamp;
-      join_held_copies_of(g);
-    }
-  }
+  for_each_moved_seam_node(
+      [](const SubVolume& sub, int local) { return sub.engine->holds_node(local); },
+      [this](int g) { join_held_copies_of(g); });
 }
 
 void StitchedVolume::join_held_copies_of(int g) {
@@ -662,14 +673,6 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
-std::uint32_t StitchedVolume::next_node_stamp() {
-  if (++node_stamp_counter_ == 0) {  // wrapped (after years at 60 Hz): no stale stamp may match
-    std::fill(node_stamp_.begin(), node_stamp_.end(), 0u);
-    node_stamp_counter_ = 1;
-  }
-  return node_stamp_counter_;
-}
-
 void StitchedVolume::update_seam(int g) {
   const int begin = copies_begin_[g], end = copies_begin_[g + 1];
   const Eigen::Vector3d sum = copies_sum(g);
@@ -717,17 +720,9 @@ void StitchedVolume::finish_frame() {
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
   });
-  const std::uint32_t stamp = next_node_stamp();
   seams_to_update_.clear();
-  for (const int s : moved_subs_) {
-    const SubVolume& sub = subs_[s];
-    for (const int local : sub.shared_local) {
-      const int g = sub.global_node[local];
-      if (node_stamp_[g] == stamp) continue;
-      node_stamp_[g] = stamp;
-      seams_to_update_.push_back(g);
-    }
-  }
+  for_each_moved_seam_node([](const SubVolume&, int) { return true; },
+                           [this](int g) { seams_to_update_.push_back(g); });
   const auto seams = static_cast<int>(seams_to_update_.size());
   const int seam_tasks = jobs_ != nullptr ? 2 * jobs_->thread_count() : 1;
   hal::parallel_for(jobs_, seam_tasks, [&](int task) {

@@ -61,8 +61,8 @@ class FineCorrection {
     // The engine's rest stiffness in node blocks (its products stream half the bytes), one band:
     // a sub-volume's product is one task of the job system.
     detail::NodeBlockMatrix stiffness;
-    std::vector<Eigen::VectorXd> spill{1};  // of the one band: empty
-    Eigen::VectorXd local_in, local_out;    // 3 × local nodes: scratch
+    Eigen::VectorXd spill;                // of the one band: empty
+    Eigen::VectorXd local_in, local_out;  // 3 × local nodes: scratch
   };
   struct Copy {
     int sub = 0;

@@ -194,8 +194,10 @@ class StitchedVolume final : public DeformationEngine {
   void join_held_copies_of(int grid_node);
   // A shared node's midpoint, gap and pull from its copies.
   void update_seam(int grid_node);
-  // A stamp no grid node carries yet (node_stamp_).
-  std::uint32_t next_node_stamp();
+  // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
+  // shares at a local node keep(sub, local) accepts.
+  template <typename Keep, typename Visit>
+  void for_each_moved_seam_node(Keep keep, Visit visit);
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
   // Σ of the positions of grid node g's copies.
@@ -229,7 +231,7 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Eigen::Vector3d> shown_;
   // Per grid node: the widest gap between its copies and the strongest pull on one, as of the
   // last frame any of its copies moved (0 where not shared); and a stamp, so that a loop over
-  // sub-volumes' seam nodes visits each grid node once.
+  // sub-volumes' seam nodes visits each grid node once (for_each_moved_seam_node).
   std::vector<double> seam_gap_mm_;
   std::vector<double> seam_force_mn_;
   std::vector<std::uint32_t> node_stamp_;
