@@ -52,18 +52,28 @@ SkinSurface::SkinSurface(const Eigen::Vector2d& footprint_min_mm,
     }
   }
   // Springs: grid edges and one diagonal a cell (the triangles' edges), and the other diagonal
-  // too, so a sheet resists shear the same both ways.
+  // too, so a sheet resists shear the same both ways. A spring between two driven nodes moves
+  // nothing (their places come from the tissue), so only springs with a free end are kept: over
+  // a large tissue most of the skin is driven.
+  const auto add_edge = [&](int a, int b) {
+    if (!is_driven_[static_cast<std::size_t>(a)] || !is_driven_[static_cast<std::size_t>(b)]) {
+      edges_.push_back({a, b});
+    }
+  };
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
-      if (i + 1 < nx) edges_.push_back({at(i, j), at(i + 1, j)});
-      if (j + 1 < ny) edges_.push_back({at(i, j), at(i, j + 1)});
+      if (i + 1 < nx) add_edge(at(i, j), at(i + 1, j));
+      if (j + 1 < ny) add_edge(at(i, j), at(i, j + 1));
       if (i + 1 < nx && j + 1 < ny) {
-        edges_.push_back({at(i, j), at(i + 1, j + 1)});
-        edges_.push_back({at(i + 1, j), at(i, j + 1)});
+        add_edge(at(i, j), at(i + 1, j + 1));
+        add_edge(at(i + 1, j), at(i, j + 1));
       }
     }
   }
   for (const auto& e : edges_) edge_rest_mm_.push_back((rest_[e[0]] - rest_[e[1]]).norm());
+  for (std::size_t n = 0; n < rest_.size(); ++n) {
+    if (!is_driven_[n]) free_.push_back(static_cast<std::uint32_t>(n));
+  }
   position_ = rest_;
   velocity_.assign(rest_.size(), Eigen::Vector3d::Zero());
   force_.assign(rest_.size(), Eigen::Vector3d::Zero());
@@ -104,8 +114,7 @@ bool SkinSurface::step(const ProbeCollider* probe,
       force_[b] -= f;
     }
     const double keep = 1.0 / (1.0 + settings_.damping_per_s * h);
-    for (std::size_t n = 0; n < rest_.size(); ++n) {
-      if (is_driven_[n]) continue;
+    for (const std::uint32_t n : free_) {
       velocity_[n] = keep * (velocity_[n] + h * accel_mm_per_n * force_[n]);
       position_[n] += h * velocity_[n];
       // The probe cannot be entered: a node inside it goes down the beam to the face (the skin

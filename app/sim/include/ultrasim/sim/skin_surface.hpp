@@ -62,6 +62,7 @@ class SkinSurface {
   std::vector<double> edge_rest_mm_;
   std::vector<std::uint8_t> is_driven_;
   std::vector<std::int32_t> driven_;
+  std::vector<std::uint32_t> free_;  // the nodes not driven, which the springs move
   std::vector<std::uint32_t> triangles_;
 };
 
