@@ -269,6 +269,9 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "Once a frame, at most this many conjugate-gradient iterations on the stepped "
               "sub-volumes as one piece, within the frame's time: the seams settle around a press "
               "in a few frames (0: the seams alone, as published)."));
+  t.add(field("refuse_gap_mm", &S::refuse_gap_mm, RealIn::open_closed(0.0, 1e3),
+              "A frame that opens a seam wider than this (mm, between copies of a shared node) is "
+              "refused as torn; the tissue keeps its last good shape."));
   t.add(field("sleep_force_mn", &S::sleep_force_mn, RealIn::closed(0.0, 1e6),
               "A sub-volume out of reach sleeps when its seams pull less than this (mN) ..."));
   t.add(field("sleep_motion_mm", &S::sleep_motion_mm, RealIn::closed(0.0, 1e3),

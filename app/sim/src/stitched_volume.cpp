@@ -66,6 +66,9 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   if (!(stitching.spring_stiffness_per_modulus_mm > 0.0)) {
     throw std::invalid_argument("StitchedVolume: spring_stiffness_per_modulus_mm must be > 0");
   }
+  if (!(stitching.refuse_gap_mm > 0.0)) {
+    throw std::invalid_argument("StitchedVolume: refuse_gap_mm must be > 0");
+  }
   if (stitching.extra_sub_volumes_per_frame < 0) {
     throw std::invalid_argument("StitchedVolume: extra_sub_volumes_per_frame must be >= 0");
   }
@@ -550,7 +553,7 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
   }
 }
 
-bool StitchedVolume::refuses_frame(std::span<const int> stepped) const {
+bool StitchedVolume::refuses_frame(std::span<const int> stepped) {
   int inverted = 0;
   for (int s : stepped) {
     const EngineStepStats& stats = subs_[s].last_stats;
@@ -559,7 +562,25 @@ bool StitchedVolume::refuses_frame(std::span<const int> stepped) const {
     }
     inverted += stats.inverted_tets;
   }
-  return inverted > max_inverted_tets_;
+  return inverted > max_inverted_tets_ || tears_a_seam();
+}
+
+bool StitchedVolume::tears_a_seam() {
+  bool torn = false;
+  for_each_moved_seam_node([](const SubVolume&, int) { return true; },
+                           [&](int g) {
+                             if (torn || fixed_[g]) return;
+                             const int begin = copies_begin_[g], end = copies_begin_[g + 1];
+                             const double limit =
+                                 std::max(settings_.refuse_gap_mm, seam_gap_mm_[g]);
+                             for (int c = begin; c < end && !torn; ++c) {
+                               const Eigen::Vector3d x = copy_position(copies_[c]);
+                               for (int d = c + 1; d < end; ++d) {
+                                 torn = torn || (copy_position(copies_[d]) - x).norm() > limit;
+                               }
+                             }
+                           });
+  return torn;
 }
 
 void StitchedVolume::revert_frame(std::span<const int> stepped) {

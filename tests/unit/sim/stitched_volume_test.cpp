@@ -715,6 +715,55 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
   }
 }
 
+// A frame that opens a seam wider than refuse_gap_mm is refused as a whole (a torn seam never
+// reaches the screen), here with the bound set below what a press across the seam opens.
+TEST(StitchedVolume, AFrameThatOpensASeamPastTheBoundIsRefused) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  constexpr double kTightGapMm = 0.01;
+  for (const double bound_mm : {kTightGapMm, 1e3}) {
+    SCOPED_TRACE(bound_mm);
+    StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
+    stitching.refuse_gap_mm = bound_mm;
+    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                            stitching, &jobs);
+    int refused = 0;
+    double widest_accepted_mm = 0.0;
+    Eigen::VectorXd before = stitched.displacements_mm();
+    for (int f = 0; f < 30; ++f) {
+      const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, 0.1 * (f + 1));
+      const EngineStepStats s = stitched.step(&probe, 1.0 / 60);
+      const double gap = stitched.last_stitch_stats().max_gap_mm;
+      if (s.recovery == Recovery::kKeptLastGood) {
+        ++refused;
+        EXPECT_TRUE(s.diverged);
+        // Back where the frame found it, to the rounding of x − u = rest.
+        EXPECT_LT((stitched.displacements_mm() - before).cwiseAbs().maxCoeff(), 1e-12)
+            << "frame " << f;
+      } else {
+        widest_accepted_mm = std::max(widest_accepted_mm, gap);
+      }
+      before = stitched.displacements_mm();
+    }
+    if (bound_mm == kTightGapMm) {
+      EXPECT_GT(refused, 0);
+      EXPECT_LE(widest_accepted_mm, kTightGapMm);
+    } else {
+      EXPECT_EQ(refused, 0);
+      EXPECT_GT(widest_accepted_mm, kTightGapMm) << "the press must open the seam past the bound";
+    }
+  }
+}
+
+TEST(StitchedVolume, RejectsANonPositiveGapBound) {
+  const Region r = make_region({22, 10, 8});
+  StitchingSettings stitching{.sub_volumes = {2, 1, 1}};
+  stitching.refuse_gap_mm = 0.0;
+  EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                              stitching),
+               std::invalid_argument);
+}
+
 TEST(StitchedVolume, ShowsSharedNodesAtTheirCopiesMeanAndTakesALiveSwitch) {
   const Region r = make_region({26, 26, 5});
   hal::InlineJobSystem jobs;

@@ -185,7 +185,11 @@ class StitchedVolume final : public DeformationEngine {
   // rest would leave that sub-volume at its frame's start, or at rest, against neighbours
   // pressed on: the seam tears, its springs pull the copies apart harder each frame, and the
   // explicit MSDS blew up (the soak with the large case: 13 resets in 60 s, a 2.2 m gap).
-  bool refuses_frame(std::span<const int> stepped) const;
+  // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
+  // than it was): a torn seam.
+  bool refuses_frame(std::span<const int> stepped);
+  // Whether a seam of a moved sub-volume is now wider than refuse_gap_mm and than last frame.
+  bool tears_a_seam();
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
   // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
