@@ -20,6 +20,11 @@ void check(const TaskSpec& spec) {
   if (spec.budget_us <= 0) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) + ": budget_us must be > 0");
   }
+  if (spec.expect_longest_of_last < 0 || spec.expect_longest_of_last > kMaxReserveRuns) {
+    throw std::invalid_argument("Scheduler: task " + name_of(spec) +
+                                ": expect_longest_of_last must be in [0, " +
+                                std::to_string(kMaxReserveRuns) + "]");
+  }
   if (!(spec.rate_hz >= 0.0) || !std::isfinite(spec.rate_hz)) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) +
                                 ": rate_hz must be finite and >= 0");
@@ -63,7 +68,7 @@ TickReport Scheduler::tick() {
   for (std::size_t i = slots_.size(); i-- > 0;) {
     slots_[i].reserved_after_us = reserved_us;
     if (slots_[i].spec.mandatory && ticks_ >= slots_[i].next_due_tick) {
-      reserved_us += slots_[i].spec.budget_us;
+      reserved_us += std::min(slots_[i].spec.budget_us, expected_us(slots_[i]));
     }
   }
   for (std::size_t i = 0; i < slots_.size(); ++i) {
@@ -75,7 +80,7 @@ TickReport Scheduler::tick() {
         settings_.frame_budget_us - (task_start_us - start_us) - slot.reserved_after_us;
     const bool starved = slot.spec.max_consecutive_slips > 0 &&
                          slot.consecutive_slips >= slot.spec.max_consecutive_slips;
-    if (!slot.spec.mandatory && slot.spec.budget_us > time_left_us) {
+    if (!slot.spec.mandatory && expected_us(slot) > time_left_us) {
       if (!starved) {
         // Stays due: it is tried again next tick, and every skipped due tick is a slip.
         ++stats.slips;
@@ -88,6 +93,7 @@ TickReport Scheduler::tick() {
     slot.consecutive_slips = 0;
     slot.spec.run(slot.spec.context, TaskTick{ticks_, start_us, time_left_us});
     const std::int64_t took_us = clock_.now_us() - task_start_us;
+    remember_run(slot, took_us);
     stats.time.record(took_us);
     ++stats.runs;
     if (took_us > slot.spec.budget_us) ++stats.overruns;
@@ -99,6 +105,21 @@ TickReport Scheduler::tick() {
   frame_.record(report.duration_us);
   ++ticks_;
   return report;
+}
+
+std::int64_t Scheduler::expected_us(const Slot& slot) {
+  const int runs = slot.spec.expect_longest_of_last;
+  if (runs == 0 || slot.recent_count < runs) return slot.spec.budget_us;
+  const auto recent = std::span(slot.recent_us).first(static_cast<std::size_t>(runs));
+  return *std::ranges::max_element(recent);
+}
+
+void Scheduler::remember_run(Slot& slot, std::int64_t took_us) {
+  const int runs = slot.spec.expect_longest_of_last;
+  if (runs == 0) return;
+  slot.recent_us[static_cast<std::size_t>(slot.recent_next)] = took_us;
+  slot.recent_next = (slot.recent_next + 1) % runs;
+  slot.recent_count = std::min(slot.recent_count + 1, runs);
 }
 
 const TaskStats* Scheduler::find(std::string_view name) const {

@@ -62,6 +62,87 @@ TEST(Scheduler, RunsDueTasksInPriorityOrderWithTiesInTableOrder) {
   EXPECT_EQ(scheduler.task_stats()[0].name, "input");
 }
 
+TEST(Scheduler, AMandatoryTaskKeepsBackTheLongestOfItsLastRunsAtMostItsBudget) {
+  hal::ManualClock clock;
+  // The rendering's budget is 9 ms but it takes 2 ms; the optional B-scan needs 10 ms of 16.
+  FakeTask bscan{&clock, 1'000, "bscan"}, render{&clock, 2'000, "render"};
+  TaskSpec render_spec = spec_for(render, 0, 9'000, 1, true);
+  render_spec.expect_longest_of_last = 3;
+  const std::vector<TaskSpec> table{spec_for(bscan, 0, 10'000, 0), render_spec};
+  Scheduler scheduler(clock, table, {60.0, 16'000});
+  const auto tick = [&] {
+    const std::int64_t runs = scheduler.find("bscan")->runs;
+    scheduler.tick();
+    clock.advance_us(16'000);
+    return scheduler.find("bscan")->runs > runs;
+  };
+  // Until the rendering has run three times its budget is kept back: 16 - 9 < 10.
+  for (int i = 0; i < 3; ++i) EXPECT_FALSE(tick()) << "tick " << i;
+  // Then the longest of its last three runs, 2 ms: 16 - 2 >= 10.
+  EXPECT_TRUE(tick());
+  EXPECT_TRUE(tick());
+  // One slow run (7 ms) is kept back for the next three ticks, then forgotten.
+  render.cost_us = 7'000;
+  EXPECT_TRUE(tick());  // decided before the slow run
+  render.cost_us = 2'000;
+  for (int i = 0; i < 3; ++i) EXPECT_FALSE(tick()) << "after the slow run, tick " << i;
+  EXPECT_TRUE(tick());
+  // Never more than its budget: a run of 20 ms keeps back 9, and a 7 ms task fits beside it.
+  bscan.cost_us = 1'000;
+  render.cost_us = 20'000;
+  FakeTask view{&clock, 1'000, "view"};
+  TaskSpec slow_render = spec_for(render, 0, 9'000, 1, true);
+  slow_render.expect_longest_of_last = 3;
+  const std::vector<TaskSpec> slow_table{spec_for(view, 0, 7'000, 0), slow_render};
+  Scheduler slow(clock, slow_table, {60.0, 16'000});
+  for (int i = 0; i < 6; ++i) {
+    slow.tick();
+    clock.advance_us(16'000);
+  }
+  EXPECT_EQ(slow.find("view")->runs, 6);
+  EXPECT_EQ(slow.find("view")->slips, 0);
+}
+
+TEST(Scheduler, AnOptionalTaskStartsOnlyWhereTheLongestOfItsLastRunsFits) {
+  hal::ManualClock clock;
+  // The B-scan's budget is 2 ms but it takes 5; then it takes 1 ms.
+  FakeTask solve{&clock, 0, "solve"}, bscan{&clock, 5'000, "bscan"};
+  TaskSpec bscan_spec = spec_for(bscan, 0, 2'000, 1);
+  bscan_spec.expect_longest_of_last = 2;
+  const std::vector<TaskSpec> table{spec_for(solve, 0, 10'000, 0, true), bscan_spec};
+  Scheduler scheduler(clock, table, {60.0, 10'000});
+  const auto tick_after_solve = [&](std::int64_t solve_us) {
+    solve.cost_us = solve_us;
+    const std::int64_t runs = scheduler.find("bscan")->runs;
+    scheduler.tick();
+    clock.advance_us(10'000);
+    return scheduler.find("bscan")->runs > runs;
+  };
+  // Its budget until it has run twice: 3 ms left is enough.
+  EXPECT_TRUE(tick_after_solve(7'000));
+  EXPECT_TRUE(tick_after_solve(7'000));
+  // Then 5 ms: 3 ms left is not, 5 ms is.
+  EXPECT_FALSE(tick_after_solve(7'000));
+  EXPECT_TRUE(tick_after_solve(5'000));
+  // Quicker now (1 ms): once its last two runs were, 1.5 ms left is enough, below its budget.
+  bscan.cost_us = 1'000;
+  EXPECT_TRUE(tick_after_solve(5'000));
+  EXPECT_TRUE(tick_after_solve(5'000));
+  EXPECT_TRUE(tick_after_solve(8'500));
+  EXPECT_EQ(scheduler.find("bscan")->slips, 1);
+}
+
+TEST(Scheduler, RejectsAReserveOverMoreRunsThanItKeeps) {
+  hal::ManualClock clock;
+  FakeTask render{&clock, 10, "render"};
+  for (const int runs : {-1, kMaxReserveRuns + 1}) {
+    TaskSpec spec = spec_for(render, 0, 100, 0, true);
+    spec.expect_longest_of_last = runs;
+    const std::vector<TaskSpec> table{spec};
+    EXPECT_THROW(Scheduler(clock, table), std::invalid_argument) << runs;
+  }
+}
+
 TEST(Scheduler, TaskRatesDivideTheLoopRate) {
   hal::ManualClock clock;
   FakeTask every{&clock, 10, "every"}, half{&clock, 10, "half"}, tenth{&clock, 10, "tenth"},

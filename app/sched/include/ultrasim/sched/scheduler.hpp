@@ -8,6 +8,7 @@
 // The frame never waits for a late task: it trades work for latency, never latency for work.
 // Time comes only from the injected hal::Clock, so tests drive it with a ManualClock.
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string_view>
@@ -34,7 +35,8 @@ struct TaskSpec {
   // Runs every round(loop_rate_hz / rate_hz) ticks; 0 or ≥ the loop rate: every tick.
   double rate_hz = 0.0;
   // The most the task should take, µs: it is started only when this much of the frame is left
-  // (mandatory tasks always start) and counted as an overrun when it takes longer. > 0.
+  // (or what it is expected to take, expect_longest_of_last; mandatory tasks always start) and
+  // counted as an overrun when it takes longer. > 0.
   std::int64_t budget_us = 1;
   // Lower runs first within a tick; ties keep table order.
   int priority = 0;
@@ -46,7 +48,16 @@ struct TaskSpec {
   // An optional task skipped this many due ticks in a row runs on the next one whatever the
   // time (counted in TaskStats::forced_runs): the B-scan may lag, never freeze. 0: no limit.
   int max_consecutive_slips = 0;
+  // What the task is expected to take: its budget (0), or the longest of its last this-many runs
+  // (1..kMaxReserveRuns; its budget until it has run that often). An optional task starts only
+  // if that fits in the time left; a mandatory one keeps that back, at most its budget, from the
+  // optional tasks before it. The kiosk's B-scan takes 4 ms of its 3 on the large case, and its
+  // rendering 3 ms of its 9 on a GPU: by budgets alone the B-scan started where it did not fit,
+  // or found no room beside a rendering that needed a third of it.
+  int expect_longest_of_last = 0;
 };
+
+inline constexpr int kMaxReserveRuns = 64;
 
 struct SchedulerSettings {
   double loop_rate_hz = 60.0;             // ticks per second
@@ -95,9 +106,16 @@ class Scheduler {
     TaskSpec spec;
     std::int64_t period_ticks = 1;
     std::int64_t next_due_tick = 0;
-    std::int64_t reserved_after_us = 0;  // this tick: budgets of due mandatory tasks after it
+    std::int64_t reserved_after_us = 0;  // this tick: reserves of due mandatory tasks after it
     int consecutive_slips = 0;
+    // The last runs' durations (expect_longest_of_last of them, a ring) and how many are known.
+    std::array<std::int64_t, kMaxReserveRuns> recent_us{};
+    int recent_count = 0;
+    int recent_next = 0;
   };
+  // What the task is expected to take (TaskSpec::expect_longest_of_last).
+  static std::int64_t expected_us(const Slot& slot);
+  static void remember_run(Slot& slot, std::int64_t took_us);
 
   const hal::Clock& clock_;
   SchedulerSettings settings_;
