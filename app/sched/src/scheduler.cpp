@@ -20,9 +20,9 @@ void check(const TaskSpec& spec) {
   if (spec.budget_us <= 0) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) + ": budget_us must be > 0");
   }
-  if (spec.expect_longest_of_last < 0 || spec.expect_longest_of_last > kMaxReserveRuns) {
+  if (spec.expect_from_last_runs < 0 || spec.expect_from_last_runs > kMaxReserveRuns) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) +
-                                ": expect_longest_of_last must be in [0, " +
+                                ": expect_from_last_runs must be in [0, " +
                                 std::to_string(kMaxReserveRuns) + "]");
   }
   if (!(spec.rate_hz >= 0.0) || !std::isfinite(spec.rate_hz)) {
@@ -108,14 +108,18 @@ TickReport Scheduler::tick() {
 }
 
 std::int64_t Scheduler::expected_us(const Slot& slot) {
-  const int runs = slot.spec.expect_longest_of_last;
+  const int runs = slot.spec.expect_from_last_runs;
   if (runs == 0 || slot.recent_count < runs) return slot.spec.budget_us;
-  const auto recent = std::span(slot.recent_us).first(static_cast<std::size_t>(runs));
-  return *std::ranges::max_element(recent);
+  std::array<std::int64_t, kMaxReserveRuns> sorted = slot.recent_us;
+  const auto recent = std::span(sorted).first(static_cast<std::size_t>(runs));
+  // The 90th percentile: the smallest value that at least 90 % of the runs do not exceed.
+  const auto rank = static_cast<std::ptrdiff_t>((9 * runs + 9) / 10 - 1);
+  std::ranges::nth_element(recent, recent.begin() + rank);
+  return recent[static_cast<std::size_t>(rank)];
 }
 
 void Scheduler::remember_run(Slot& slot, std::int64_t took_us) {
-  const int runs = slot.spec.expect_longest_of_last;
+  const int runs = slot.spec.expect_from_last_runs;
   if (runs == 0) return;
   slot.recent_us[static_cast<std::size_t>(slot.recent_next)] = took_us;
   slot.recent_next = (slot.recent_next + 1) % runs;

@@ -35,7 +35,7 @@ struct TaskSpec {
   // Runs every round(loop_rate_hz / rate_hz) ticks; 0 or ≥ the loop rate: every tick.
   double rate_hz = 0.0;
   // The most the task should take, µs: it is started only when this much of the frame is left
-  // (or what it is expected to take, expect_longest_of_last; mandatory tasks always start) and
+  // (or what it is expected to take, expect_from_last_runs; mandatory tasks always start) and
   // counted as an overrun when it takes longer. > 0.
   std::int64_t budget_us = 1;
   // Lower runs first within a tick; ties keep table order.
@@ -48,13 +48,15 @@ struct TaskSpec {
   // An optional task skipped this many due ticks in a row runs on the next one whatever the
   // time (counted in TaskStats::forced_runs): the B-scan may lag, never freeze. 0: no limit.
   int max_consecutive_slips = 0;
-  // What the task is expected to take: its budget (0), or the longest of its last this-many runs
-  // (1..kMaxReserveRuns; its budget until it has run that often). An optional task starts only
-  // if that fits in the time left; a mandatory one keeps that back, at most its budget, from the
-  // optional tasks before it. The kiosk's B-scan takes 4 ms of its 3 on the large case, and its
-  // rendering 3 ms of its 9 on a GPU: by budgets alone the B-scan started where it did not fit,
-  // or found no room beside a rendering that needed a third of it.
-  int expect_longest_of_last = 0;
+  // What the task is expected to take: its budget (0), or the 90th percentile of its last
+  // this-many runs (1..kMaxReserveRuns; the longest of fewer than ten; its budget until it has
+  // run that often), so that one slow run among 30 is not expected again (a machine's hiccup
+  // would keep an optional task to its forced runs until 30 more had passed). An optional task
+  // starts only if that fits in the time left; a mandatory one keeps that back, at most its
+  // budget, from the optional tasks before it. The kiosk's B-scan takes 4 ms of its 3 on the
+  // large case, and its rendering 3 ms of its 9 on a GPU: by budgets alone the B-scan started
+  // where it did not fit, or found no room beside a rendering that needed a third of it.
+  int expect_from_last_runs = 0;
 };
 
 inline constexpr int kMaxReserveRuns = 64;
@@ -108,12 +110,12 @@ class Scheduler {
     std::int64_t next_due_tick = 0;
     std::int64_t reserved_after_us = 0;  // this tick: reserves of due mandatory tasks after it
     int consecutive_slips = 0;
-    // The last runs' durations (expect_longest_of_last of them, a ring) and how many are known.
+    // The last runs' durations (expect_from_last_runs of them, a ring) and how many are known.
     std::array<std::int64_t, kMaxReserveRuns> recent_us{};
     int recent_count = 0;
     int recent_next = 0;
   };
-  // What the task is expected to take (TaskSpec::expect_longest_of_last).
+  // What the task is expected to take (TaskSpec::expect_from_last_runs).
   static std::int64_t expected_us(const Slot& slot);
   static void remember_run(Slot& slot, std::int64_t took_us);
 
