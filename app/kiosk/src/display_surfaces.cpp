@@ -77,22 +77,32 @@ DeformedSurfaces::DeformedSurfaces(std::span<const DisplaySurface> surfaces)
     views_[s].normals = buffers_[s].normals_f;
     views_[s].triangles = surfaces[s].triangle_indices;
     views_[s].rgba = surfaces[s].rgba;
+    for (std::size_t begin = 0; begin < n; begin += kChunkVertices) {
+      chunks_.push_back({static_cast<int>(s), static_cast<int>(begin),
+                         static_cast<int>(std::min(n, begin + kChunkVertices))});
+    }
   }
 }
 
 void DeformedSurfaces::update(std::span<const Eigen::Vector3d> deformed_nodes_mm,
                               hal::JobSystem& jobs) {
-  // One task per surface: they are few and of similar size, and normals need whole surfaces.
+  // The vertices in chunks over every surface (the large case's bone has as many as its three
+  // vessels together: one task per surface left a thread idle), then the normals one task per
+  // surface, since they need whole surfaces.
+  hal::parallel_for(jobs, static_cast<int>(chunks_.size()), [&](int c) {
+    const Chunk& chunk = chunks_[c];
+    Buffers& b = buffers_[chunk.surface];
+    surfaces_[chunk.surface].embedding.update_range(chunk.begin, chunk.end, deformed_nodes_mm,
+                                                    b.positions);
+    for (int v = chunk.begin; v < chunk.end; ++v) {
+      for (int a = 0; a < 3; ++a) b.positions_f[3 * v + a] = static_cast<float>(b.positions[v][a]);
+    }
+  });
   hal::parallel_for(jobs, static_cast<int>(surfaces_.size()), [&](int s) {
-    const DisplaySurface& surface = surfaces_[s];
     Buffers& b = buffers_[s];
-    surface.embedding.update(deformed_nodes_mm, b.positions);
-    geometry::compute_vertex_normals(b.positions, surface.rest.triangles, b.normals);
-    for (std::size_t v = 0; v < b.positions.size(); ++v) {
-      for (int a = 0; a < 3; ++a) {
-        b.positions_f[3 * v + a] = static_cast<float>(b.positions[v][a]);
-        b.normals_f[3 * v + a] = static_cast<float>(b.normals[v][a]);
-      }
+    geometry::compute_vertex_normals(b.positions, surfaces_[s].rest.triangles, b.normals);
+    for (std::size_t v = 0; v < b.normals.size(); ++v) {
+      for (int a = 0; a < 3; ++a) b.normals_f[3 * v + a] = static_cast<float>(b.normals[v][a]);
     }
   });
 }

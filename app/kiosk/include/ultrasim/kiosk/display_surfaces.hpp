@@ -49,8 +49,14 @@ class DeformedSurfaces {
     std::vector<Eigen::Vector3d> positions, normals;
     std::vector<float> positions_f, normals_f;
   };
+  // A run of one surface's vertices, updated as one task.
+  struct Chunk {
+    int surface, begin, end;
+  };
+  static constexpr std::size_t kChunkVertices = 1024;
   std::span<const DisplaySurface> surfaces_;
   std::vector<Buffers> buffers_;
+  std::vector<Chunk> chunks_;
   std::vector<render::SurfaceView> views_;
 };
 
