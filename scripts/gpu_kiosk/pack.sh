@@ -35,7 +35,8 @@ cp app/kiosk/libultrasim_kiosk.a "$work/libkiosk.a"
 link=$(ninja -t commands app/kiosk/ultrasim-kiosk | tail -1)
 link=$(sed "s#app/kiosk/libultrasim_kiosk.a#$work/libkiosk.a#; s# -o app/kiosk/ultrasim-kiosk # -o $work/ultrasim-kiosk -Wl,--as-needed #" <<<"$link")
 eval "$link"
-if ldd "$work/ultrasim-kiosk" | grep -q opencv; then
+libraries=$(ldd "$work/ultrasim-kiosk")
+if grep -q opencv <<<"$libraries"; then
   echo "pack.sh: the timing build still loads OpenCV" >&2
   exit 1
 fi

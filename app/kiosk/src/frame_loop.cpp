@@ -17,9 +17,9 @@ FrameLoop::FrameLoop(Session& session, FrameRenderer& renderer, const hal::Clock
 std::array<sched::TaskSpec, 4> FrameLoop::table(const sched::FrameBudgetSettings& budgets) {
   // Every task at the loop's rate; the order is the data flow (DESIGN.md §2). The B-scan is what
   // the trainee watches: after two skipped frames it runs whatever the time (it may lag, never
-  // freeze); the 3D view may wait longer. Each is expected to take what 90 % of its last half
-  // second's runs took: the B-scan and the view start only where that fits, and the rendering
-  // keeps back that (at most its budget: on a GPU it takes a third of its 9 ms).
+  // freeze); the 3D view may wait longer. Each is expected to take what 90 % of its last 30 runs
+  // took: the B-scan and the view start only where that fits, and the rendering keeps back that
+  // (at most its budget: on a GPU it takes a third of its 9 ms).
   constexpr int kExpectFromRuns = 30;
   return {{
       {kSimulation, 0.0, budgets.simulation_budget_us, 0, true, &FrameLoop::simulate, this, 0},

@@ -25,6 +25,12 @@ void check(const TaskSpec& spec) {
                                 ": expect_from_last_runs must be in [0, " +
                                 std::to_string(kMaxReserveRuns) + "]");
   }
+  if (spec.expect_from_last_runs > 0 && !spec.mandatory && spec.max_consecutive_slips == 0) {
+    // Expected to take more than any frame leaves, it would never run again to learn otherwise.
+    throw std::invalid_argument("Scheduler: task " + name_of(spec) +
+                                ": an optional task expected from its last runs needs "
+                                "max_consecutive_slips > 0");
+  }
   if (!(spec.rate_hz >= 0.0) || !std::isfinite(spec.rate_hz)) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) +
                                 ": rate_hz must be finite and >= 0");

@@ -566,13 +566,20 @@ bool StitchedVolume::refuses_frame(std::span<const int> stepped) {
 }
 
 bool StitchedVolume::tears_a_seam() {
+  // A seam already past the bound may close or hold, not widen by more than rounding and a
+  // still probe's warm-started drift (refusing those would hold the probe at random); one
+  // within it may not cross it.
+  constexpr double kWideningToleranceMm = 1e-3;
   bool torn = false;
-  for_each_moved_seam_node([](const SubVolume&, int) { return true; },
+  // The stepped sub-volumes' seams: a refusal reverts only those, and the copies of a node move
+  // alike under the corrections.
+  for_each_moved_seam_node([](const SubVolume& sub, int) { return sub.stepped; },
                            [&](int g) {
-                             if (torn || fixed_[g]) return;
+                             if (torn) return;
                              const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-                             const double limit =
-                                 std::max(settings_.refuse_gap_mm, seam_gap_mm_[g]);
+                             const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
+                                                      ? seam_gap_mm_[g] + kWideningToleranceMm
+                                                      : settings_.refuse_gap_mm;
                              for (int c = begin; c < end && !torn; ++c) {
                                const Eigen::Vector3d x = copy_position(copies_[c]);
                                for (int d = c + 1; d < end; ++d) {

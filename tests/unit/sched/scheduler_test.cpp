@@ -88,7 +88,6 @@ TEST(Scheduler, AMandatoryTaskKeepsBackWhatItsLastRunsTookAtMostItsBudget) {
   for (int i = 0; i < 3; ++i) EXPECT_FALSE(tick()) << "after the slow run, tick " << i;
   EXPECT_TRUE(tick());
   // Never more than its budget: a run of 20 ms keeps back 9, and a 7 ms task fits beside it.
-  bscan.cost_us = 1'000;
   render.cost_us = 20'000;
   FakeTask view{&clock, 1'000, "view"};
   TaskSpec slow_render = spec_for(render, 0, 9'000, 1, true);
@@ -109,6 +108,7 @@ TEST(Scheduler, AnOptionalTaskStartsOnlyWhereWhatItsLastRunsTookFits) {
   FakeTask solve{&clock, 0, "solve"}, bscan{&clock, 5'000, "bscan"};
   TaskSpec bscan_spec = spec_for(bscan, 0, 2'000, 1);
   bscan_spec.expect_from_last_runs = 2;
+  bscan_spec.max_consecutive_slips = 5;
   const std::vector<TaskSpec> table{spec_for(solve, 0, 10'000, 0, true), bscan_spec};
   Scheduler scheduler(clock, table, {60.0, 10'000});
   const auto tick_after_solve = [&](std::int64_t solve_us) {
@@ -171,6 +171,14 @@ TEST(Scheduler, RejectsAReserveOverMoreRunsThanItKeeps) {
     const std::vector<TaskSpec> table{spec};
     EXPECT_THROW(Scheduler(clock, table), std::invalid_argument) << runs;
   }
+  // An optional task expected from its runs that is never forced could starve for good.
+  TaskSpec optional = spec_for(render, 0, 100, 0);
+  optional.expect_from_last_runs = 10;
+  const std::vector<TaskSpec> never_forced{optional};
+  EXPECT_THROW(Scheduler(clock, never_forced), std::invalid_argument);
+  optional.max_consecutive_slips = 3;
+  const std::vector<TaskSpec> forced{optional};
+  EXPECT_NO_THROW(Scheduler(clock, forced));
 }
 
 TEST(Scheduler, TaskRatesDivideTheLoopRate) {

@@ -23,9 +23,10 @@ namespace ultrasim::sched {
 struct TaskTick {
   std::int64_t tick_index = 0;
   hal::TimestampUs tick_start_us = 0;
-  // Frame budget left when the task started, less the budgets of the mandatory tasks still to
-  // run this tick (may be ≤ 0 for a mandatory task). A task that can stop early (sub-volume
-  // solves) spends at most min(its budget, this).
+  // Frame budget left when the task started, less what the mandatory tasks still to run this
+  // tick keep back (their budgets, or what they are expected to take: expect_from_last_runs) (may
+  // be ≤ 0 for a mandatory task). A task that can stop early (sub-volume solves) spends at most
+  // min(its budget, this).
   std::int64_t time_left_us = 0;
 };
 
@@ -52,8 +53,9 @@ struct TaskSpec {
   // this-many runs (1..kMaxReserveRuns; the longest of fewer than ten; its budget until it has
   // run that often), so that one slow run among 30 is not expected again (a machine's hiccup
   // would keep an optional task to its forced runs until 30 more had passed). An optional task
-  // starts only if that fits in the time left; a mandatory one keeps that back, at most its
-  // budget, from the optional tasks before it. The kiosk's B-scan takes 4 ms of its 3 on the
+  // starts only if that fits in the time left (and must have max_consecutive_slips > 0, or one
+  // slow spell would keep it from running ever again); a mandatory one keeps that back, at most
+  // its budget, from the optional tasks before it. The kiosk's B-scan takes 4 ms of its 3 on the
   // large case, and its rendering 3 ms of its 9 on a GPU: by budgets alone the B-scan started
   // where it did not fit, or found no room beside a rendering that needed a third of it.
   int expect_from_last_runs = 0;

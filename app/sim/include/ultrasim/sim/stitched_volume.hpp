@@ -188,7 +188,7 @@ class StitchedVolume final : public DeformationEngine {
   // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
   // than it was): a torn seam.
   bool refuses_frame(std::span<const int> stepped);
-  // Whether a seam of a moved sub-volume is now wider than refuse_gap_mm and than last frame.
+  // Whether a seam of a stepped sub-volume is now wider than refuse_gap_mm and than last frame.
   bool tears_a_seam();
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
