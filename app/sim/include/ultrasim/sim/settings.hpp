@@ -212,8 +212,8 @@ struct StitchingSettings {
   // node, mm) is refused as a whole, as one whose sub-volume refused its step: the seam has torn
   // (an explicit MSDS sub-volume pressed far past its depth folded while its neighbour did not;
   // the soak's large case accepted 10-27 mm), and the shown midpoints would blend two copies that
-  // no longer follow each other. A seam already wider may close. Under the soaks' presses an
-  // intact seam opens 1.6 mm at most.
+  // no longer follow each other. A seam already wider may close or hold (widen by 1e-3 mm at
+  // most). Under the soaks' presses an intact seam opens 1.6 mm at most.
   double refuse_gap_mm = 3.0;
   // A sub-volume out of the probe's reach sleeps once its seams pull less than sleep_force_mn
   // and its last step moved no node more than sleep_motion_mm; a seam pulling harder wakes it.
