@@ -41,6 +41,14 @@ bool cut_or_touched(int sides) {
   return (sides & (kAbove | kBelow)) == (kAbove | kBelow) || (sides & kOnPlane) != 0;
 }
 
+// A tet's edges from its first node to the other three, as columns.
+Eigen::Matrix3d edges_from_first_node(std::span<const Eigen::Vector3d> x,
+                                      const geometry::Tet& tet) {
+  Eigen::Matrix3d edges;
+  for (int c = 0; c < 3; ++c) edges.col(c) = x[tet[c + 1]] - x[tet[0]];
+  return edges;
+}
+
 // value(col, row) = at_origin + col · per_col + row · per_row, required >= min_value.
 struct Constraint {
   double at_origin, per_col, per_row, min_value;
@@ -300,10 +308,7 @@ void FastSlicer::add_cut(std::size_t t, std::vector<CutTet>& cuts) const {
 
   // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
   const Eigen::Vector3d& p0 = x[tet[0]];
-  Eigen::Matrix3d edges;
-  edges.col(0) = x[tet[1]] - p0;
-  edges.col(1) = x[tet[2]] - p0;
-  edges.col(2) = x[tet[3]] - p0;
+  const Eigen::Matrix3d edges = edges_from_first_node(x, tet);
   const double det = edges.determinant();
   const double scale = edges.colwise().norm().prod();
   if (!(std::isfinite(det) && det > 1e-12 * scale)) return;
@@ -327,11 +332,7 @@ void FastSlicer::add_cut(std::size_t t, std::vector<CutTet>& cuts) const {
 
   // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
   const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
-  Eigen::Matrix3d rest_edges;
-  rest_edges.col(0) = rest_mm_[tet[1]] - r0;
-  rest_edges.col(1) = rest_mm_[tet[2]] - r0;
-  rest_edges.col(2) = rest_mm_[tet[3]] - r0;
-  const Eigen::Matrix3d to_index = world_to_index * rest_edges;
+  const Eigen::Matrix3d to_index = world_to_index * edges_from_first_node(rest_mm_, tet);
   cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
   cut.index_per_col = to_index * per_col;
   cut.index_per_row = to_index * per_row;

@@ -20,10 +20,10 @@ void check(const TaskSpec& spec) {
   if (spec.budget_us <= 0) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) + ": budget_us must be > 0");
   }
-  if (spec.expect_from_last_runs < 0 || spec.expect_from_last_runs > kMaxReserveRuns) {
+  if (spec.expect_from_last_runs < 0 || spec.expect_from_last_runs > kMaxExpectedRuns) {
     throw std::invalid_argument("Scheduler: task " + name_of(spec) +
                                 ": expect_from_last_runs must be in [0, " +
-                                std::to_string(kMaxReserveRuns) + "]");
+                                std::to_string(kMaxExpectedRuns) + "]");
   }
   if (spec.expect_from_last_runs > 0 && !spec.mandatory && spec.max_consecutive_slips == 0) {
     // Expected to take more than any frame leaves, it would never run again to learn otherwise.
@@ -116,7 +116,7 @@ TickReport Scheduler::tick() {
 std::int64_t Scheduler::expected_us(const Slot& slot) {
   const int runs = slot.spec.expect_from_last_runs;
   if (runs == 0 || slot.recent_count < runs) return slot.spec.budget_us;
-  std::array<std::int64_t, kMaxReserveRuns> sorted = slot.recent_us;
+  std::array<std::int64_t, kMaxExpectedRuns> sorted = slot.recent_us;
   const auto recent = std::span(sorted).first(static_cast<std::size_t>(runs));
   // The 90th percentile: the smallest value that at least 90 % of the runs do not exceed.
   const auto rank = static_cast<std::ptrdiff_t>((9 * runs + 9) / 10 - 1);

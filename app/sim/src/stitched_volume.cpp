@@ -576,16 +576,10 @@ bool StitchedVolume::tears_a_seam() {
   for_each_moved_seam_node([](const SubVolume& sub, int) { return sub.stepped; },
                            [&](int g) {
                              if (torn) return;
-                             const int begin = copies_begin_[g], end = copies_begin_[g + 1];
                              const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
                                                       ? seam_gap_mm_[g] + kWideningToleranceMm
                                                       : settings_.refuse_gap_mm;
-                             for (int c = begin; c < end && !torn; ++c) {
-                               const Eigen::Vector3d x = copy_position(copies_[c]);
-                               for (int d = c + 1; d < end; ++d) {
-                                 torn = torn || (copy_position(copies_[d]) - x).norm() > limit;
-                               }
-                             }
+                             torn = widest_copy_gap_mm(g) > limit;
                            });
   return torn;
 }
@@ -707,16 +701,24 @@ void StitchedVolume::update_seam(int g) {
   const int count = end - begin;
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
-  double gap = 0.0;
   double node_force = 0.0;
   for (int c = begin; c < end && !fixed_[g]; ++c) {
+    // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+    node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] *
+                                          (sum - count * copy_position(copies_[c])).norm());
+  }
+  seam_gap_mm_[g] = fixed_[g] ? 0.0 : widest_copy_gap_mm(g);
+  seam_force_mn_[g] = node_force;
+}
+
+double StitchedVolume::widest_copy_gap_mm(int g) const {
+  const int begin = copies_begin_[g], end = copies_begin_[g + 1];
+  double gap = 0.0;
+  for (int c = begin; c < end; ++c) {
     const Eigen::Vector3d x = copy_position(copies_[c]);
     for (int d = c + 1; d < end; ++d) gap = std::max(gap, (copy_position(copies_[d]) - x).norm());
-    // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
-    node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] * (sum - count * x).norm());
   }
-  seam_gap_mm_[g] = gap;
-  seam_force_mn_[g] = node_force;
+  return gap;
 }
 
 void StitchedVolume::finish_frame() {

@@ -165,7 +165,7 @@ TEST(Scheduler, OneSlowRunInTenIsNotExpectedAgain) {
 TEST(Scheduler, RejectsAReserveOverMoreRunsThanItKeeps) {
   hal::ManualClock clock;
   FakeTask render{&clock, 10, "render"};
-  for (const int runs : {-1, kMaxReserveRuns + 1}) {
+  for (const int runs : {-1, kMaxExpectedRuns + 1}) {
     TaskSpec spec = spec_for(render, 0, 100, 0, true);
     spec.expect_from_last_runs = runs;
     const std::vector<TaskSpec> table{spec};

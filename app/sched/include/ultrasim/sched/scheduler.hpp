@@ -50,7 +50,7 @@ struct TaskSpec {
   // time (counted in TaskStats::forced_runs): the B-scan may lag, never freeze. 0: no limit.
   int max_consecutive_slips = 0;
   // What the task is expected to take: its budget (0), or the 90th percentile of its last
-  // this-many runs (1..kMaxReserveRuns; the longest of fewer than ten; its budget until it has
+  // this-many runs (1..kMaxExpectedRuns; the longest of fewer than ten; its budget until it has
   // run that often), so that one slow run among 30 is not expected again (a machine's hiccup
   // would keep an optional task to its forced runs until 30 more had passed). An optional task
   // starts only if that fits in the time left (and must have max_consecutive_slips > 0, or one
@@ -61,7 +61,7 @@ struct TaskSpec {
   int expect_from_last_runs = 0;
 };
 
-inline constexpr int kMaxReserveRuns = 64;
+inline constexpr int kMaxExpectedRuns = 64;
 
 struct SchedulerSettings {
   double loop_rate_hz = 60.0;             // ticks per second
@@ -113,7 +113,7 @@ class Scheduler {
     std::int64_t reserved_after_us = 0;  // this tick: reserves of due mandatory tasks after it
     int consecutive_slips = 0;
     // The last runs' durations (expect_from_last_runs of them, a ring) and how many are known.
-    std::array<std::int64_t, kMaxReserveRuns> recent_us{};
+    std::array<std::int64_t, kMaxExpectedRuns> recent_us{};
     int recent_count = 0;
     int recent_next = 0;
   };

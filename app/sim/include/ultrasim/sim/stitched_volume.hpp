@@ -204,6 +204,8 @@ class StitchedVolume final : public DeformationEngine {
   void for_each_moved_seam_node(Keep keep, Visit visit);
   void correct_coarsely();
   Eigen::Vector3d copy_position(const Copy& c) const;
+  // The largest distance between two of grid node g's copies (the seam's gap there).
+  double widest_copy_gap_mm(int g) const;
   // Σ of the positions of grid node g's copies.
   Eigen::Vector3d copies_sum(int g) const;
 
