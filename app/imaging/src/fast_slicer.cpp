@@ -31,24 +31,6 @@ constexpr std::uint8_t kAbove = 1, kBelow = 2, kOnPlane = 4;
 // An unused column bound; any real bound is tighter.
 constexpr double kOpen = 1e300;
 
-// A node's side of the plane as bits; a tet (or block) is cut, or touched, when its nodes lie on
-// both sides or one lies on the plane.
-int side_of_plane(double distance_mm) {
-  return (distance_mm > 0 ? kAbove : 0) | (distance_mm < 0 ? kBelow : 0) |
-         (std::abs(distance_mm) <= kOnPlaneMm ? kOnPlane : 0);
-}
-bool cut_or_touched(int sides) {
-  return (sides & (kAbove | kBelow)) == (kAbove | kBelow) || (sides & kOnPlane) != 0;
-}
-
-// A tet's edges from its first node to the other three, as columns.
-Eigen::Matrix3d edges_from_first_node(std::span<const Eigen::Vector3d> x,
-                                      const geometry::Tet& tet) {
-  Eigen::Matrix3d edges;
-  for (int c = 0; c < 3; ++c) edges.col(c) = x[tet[c + 1]] - x[tet[0]];
-  return edges;
-}
-
 // value(col, row) = at_origin + col · per_col + row · per_row, required >= min_value.
 struct Constraint {
   double at_origin, per_col, per_row, min_value;
@@ -156,27 +138,9 @@ FastSlicer::FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid)
       grid_(grid),
       row_runs_(std::make_unique<GridRowRuns>()),
       tet_inside_volume_(mesh.tets.size()),
-      frame_(std::make_unique<Frame>()) {
-  const std::size_t block_count = (tets_.size() + kBlockTets - 1) / kBlockTets;
-  block_node_start_.reserve(block_count + 1);
-  block_node_start_.push_back(0);
-  std::vector<std::uint32_t> nodes;
-  for (std::size_t b = 0; b < block_count; ++b) {
-    nodes.clear();
-    const std::size_t end = std::min(tets_.size(), (b + 1) * kBlockTets);
-    for (std::size_t t = b * kBlockTets; t < end; ++t) {
-      for (const int n : tets_[t]) {
-        if (n < 0 || static_cast<std::size_t>(n) >= rest_mm_.size()) {
-          throw std::invalid_argument("FastSlicer: a tet names a node the mesh does not have");
-        }
-        nodes.push_back(static_cast<std::uint32_t>(n));
-      }
-    }
-    std::ranges::sort(nodes);
-    const auto unique_end = std::unique(nodes.begin(), nodes.end());
-    block_nodes_.insert(block_nodes_.end(), nodes.begin(), unique_end);
-    block_node_start_.push_back(static_cast<std::int32_t>(block_nodes_.size()));
-  }
+      frame_(std::make_unique<Frame>()),
+      node_distance_mm_(mesh.rest_positions_mm.size()),
+      node_side_(mesh.rest_positions_mm.size()) {
   set_grid(grid);
 }
 
@@ -223,10 +187,20 @@ void FastSlicer::begin_prepare(const Volume<std::uint8_t>& volume,
   if (volume.voxel_count() > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     throw std::invalid_argument("FastSlicer: volumes of 2^31 voxels or more are not supported");
   }
+  const auto& x = deformed_positions_mm;
   volume_ = &volume;
   positions_mm_ = deformed_positions_mm;
   part_count_ = part_count;
   frame_->plane = PixelPlane::of(grid_, pose);
+  const PixelPlane& plane = frame_->plane;
+  // Which side of the plane each node lies on, as bits, so that a tet's four nodes are classified
+  // with three ORs: most tets are nowhere near the plane.
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    const double d = plane.unit_normal.dot(x[n] - plane.origin_mm);
+    node_distance_mm_[n] = d;
+    node_side_[n] = static_cast<std::uint8_t>((d > 0 ? kAbove : 0) | (d < 0 ? kBelow : 0) |
+                                              (std::abs(d) <= kOnPlaneMm ? kOnPlane : 0));
+  }
   frame_->world_to_index = (volume.direction() * volume.spacing_mm().asDiagonal()).inverse();
   frame_->index_max = volume.size().cast<double>().array() - 1.0;
   const Eigen::Matrix3d& world_to_index = frame_->world_to_index;
@@ -249,114 +223,107 @@ void FastSlicer::begin_prepare(const Volume<std::uint8_t>& volume,
 
 void FastSlicer::find_cuts(int part) {
   const PixelPlane& plane = frame_->plane;
-  const auto& x = positions_mm_;
-  std::vector<CutTet>& cuts = part_cuts_[part];
-  cuts.clear();
-  // Parts are runs of whole blocks, so each part's cuts come in tet order.
-  const std::size_t block_count = block_node_start_.size() - 1;
-  const std::size_t b_end = block_count * (part + 1) / part_count_;
-  for (std::size_t b = block_count * part / part_count_; b < b_end; ++b) {
-    int block_sides = 0;
-    for (std::int32_t i = block_node_start_[b]; i < block_node_start_[b + 1]; ++i) {
-      block_sides |= side_of_plane(plane.unit_normal.dot(x[block_nodes_[i]] - plane.origin_mm));
-    }
-    if (!cut_or_touched(block_sides)) continue;
-    const std::size_t t_end = std::min(tets_.size(), (b + 1) * kBlockTets);
-    for (std::size_t t = b * kBlockTets; t < t_end; ++t) add_cut(t, cuts);
-  }
-}
-
-void FastSlicer::add_cut(std::size_t t, std::vector<CutTet>& cuts) const {
-  const PixelPlane& plane = frame_->plane;
   const Eigen::Matrix3d& world_to_index = frame_->world_to_index;
   const Eigen::Vector3d& index_max = frame_->index_max;
   const Volume<std::uint8_t>& volume = *volume_;
   const auto& x = positions_mm_;
-  const geometry::Tet& tet = tets_[t];
-  std::array<double, 4> d;
-  int sides = 0;
-  for (int a = 0; a < 4; ++a) {
-    d[a] = plane.unit_normal.dot(x[tet[a]] - plane.origin_mm);
-    sides |= side_of_plane(d[a]);
-  }
-  if (!cut_or_touched(sides)) return;
+  std::vector<CutTet>& cuts = part_cuts_[part];
+  cuts.clear();
+  const std::size_t tet_count = tets_.size();
+  const std::size_t t_end = tet_count * (part + 1) / part_count_;
+  for (std::size_t t = tet_count * part / part_count_; t < t_end; ++t) {
+    const geometry::Tet& tet = tets_[t];
+    const int sides =
+        node_side_[tet[0]] | node_side_[tet[1]] | node_side_[tet[2]] | node_side_[tet[3]];
+    if ((sides & (kAbove | kBelow)) != (kAbove | kBelow) && (sides & kOnPlane) == 0) continue;
+    const std::array<double, 4> d = {node_distance_mm_[tet[0]], node_distance_mm_[tet[1]],
+                                     node_distance_mm_[tet[2]], node_distance_mm_[tet[3]]};
 
-  // Rows the cut polygon spans: its vertices are where edges cross the plane, plus nodes on it.
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  Eigen::Vector2d lo(kInf, kInf), hi(-kInf, -kInf);
-  const auto add = [&](const Eigen::Vector3d& q) {
-    const Eigen::Vector2d px = plane.pixel_of(q);
-    lo = lo.cwiseMin(px);
-    hi = hi.cwiseMax(px);
-  };
-  for (int a = 0; a < 4; ++a) {
-    if (std::abs(d[a]) <= kOnPlaneMm) add(x[tet[a]] - d[a] * plane.unit_normal);
-    for (int b = a + 1; b < 4; ++b) {
-      if ((d[a] < 0 && d[b] > 0) || (d[a] > 0 && d[b] < 0)) {
-        add(x[tet[a]] + (x[tet[b]] - x[tet[a]]) * (d[a] / (d[a] - d[b])));
+    // Rows the cut polygon spans: its vertices are where edges cross the plane, plus nodes on it.
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    Eigen::Vector2d lo(kInf, kInf), hi(-kInf, -kInf);
+    const auto add = [&](const Eigen::Vector3d& q) {
+      const Eigen::Vector2d px = plane.pixel_of(q);
+      lo = lo.cwiseMin(px);
+      hi = hi.cwiseMax(px);
+    };
+    for (int a = 0; a < 4; ++a) {
+      if (std::abs(d[a]) <= kOnPlaneMm) add(x[tet[a]] - d[a] * plane.unit_normal);
+      for (int b = a + 1; b < 4; ++b) {
+        if ((d[a] < 0 && d[b] > 0) || (d[a] > 0 && d[b] < 0)) {
+          add(x[tet[a]] + (x[tet[b]] - x[tet[a]]) * (d[a] / (d[a] - d[b])));
+        }
       }
     }
-  }
-  if (hi.x() < -kRowMarginPx || lo.x() > width_px_ - 1 + kRowMarginPx || hi.y() < -kRowMarginPx ||
-      lo.y() > height_px_ - 1 + kRowMarginPx) {
-    return;
-  }
-  CutTet cut;
-  cut.row_min = std::max(0, static_cast<int>(std::ceil(lo.y() - kRowMarginPx)));
-  cut.row_max = std::min(height_px_ - 1, static_cast<int>(std::floor(hi.y() + kRowMarginPx)));
-  if (cut.row_min > cut.row_max) return;
-
-  // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
-  const Eigen::Vector3d& p0 = x[tet[0]];
-  const Eigen::Matrix3d edges = edges_from_first_node(x, tet);
-  const double det = edges.determinant();
-  const double scale = edges.colwise().norm().prod();
-  if (!(std::isfinite(det) && det > 1e-12 * scale)) return;
-
-  // Barycentric coordinates (1..3 from the edge matrix's inverse, 0 as the rest) of the pixel
-  // centres: affine in (col, row) because the plane is.
-  const Eigen::Matrix3d inverse = edges.inverse();
-  const Eigen::Vector3d at_origin = inverse * (plane.origin_mm - p0);
-  const Eigen::Vector3d per_col = inverse * plane.per_col_mm;
-  const Eigen::Vector3d per_row = inverse * plane.per_row_mm;
-  cut.first_in_tet.fill({-kOpen, 0.0});
-  cut.last_in_tet.fill({kOpen, 0.0});
-  std::size_t next_first = 0, next_last = 0;
-  add_bound({1.0 - at_origin.sum(), -per_col.sum(), -per_row.sum(), -kBarycentricTolerance},
-            cut.first_in_tet, next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
-  for (int a = 0; a < 3; ++a) {
-    add_bound({at_origin[a], per_col[a], per_row[a], -kBarycentricTolerance}, cut.first_in_tet,
-              next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
-  }
-  if (cut.row_min > cut.row_max) return;
-
-  // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
-  const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
-  const Eigen::Matrix3d to_index = world_to_index * edges_from_first_node(rest_mm_, tet);
-  cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
-  cut.index_per_col = to_index * per_col;
-  cut.index_per_row = to_index * per_row;
-
-  cut.clip_to_volume = !tet_inside_volume_[t];
-  cut.first_in_volume.fill({-kOpen, 0.0});
-  cut.last_in_volume.fill({kOpen, 0.0});
-  cut.volume_row_min = 0;
-  cut.volume_row_max = height_px_ - 1;
-  if (cut.clip_to_volume) {
-    // Voxel index a within [-1e-9, size - 1 + 1e-9], as Volume::sample_trilinear wants it. A
-    // row the volume misses entirely keeps its pixels in the tet, as background.
-    next_first = next_last = 0;
-    for (int a = 0; a < 3; ++a) {
-      add_bound({cut.index_at_origin[a], cut.index_per_col[a], cut.index_per_row[a], -kVolumeEdge},
-                cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
-                cut.volume_row_max);
-      add_bound({-cut.index_at_origin[a], -cut.index_per_col[a], -cut.index_per_row[a],
-                 -(index_max[a] + kVolumeEdge)},
-                cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
-                cut.volume_row_max);
+    if (hi.x() < -kRowMarginPx || lo.x() > width_px_ - 1 + kRowMarginPx || hi.y() < -kRowMarginPx ||
+        lo.y() > height_px_ - 1 + kRowMarginPx) {
+      continue;
     }
+    CutTet cut;
+    cut.row_min = std::max(0, static_cast<int>(std::ceil(lo.y() - kRowMarginPx)));
+    cut.row_max = std::min(height_px_ - 1, static_cast<int>(std::floor(hi.y() + kRowMarginPx)));
+    if (cut.row_min > cut.row_max) continue;
+
+    // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
+    const Eigen::Vector3d& p0 = x[tet[0]];
+    Eigen::Matrix3d edges;
+    edges.col(0) = x[tet[1]] - p0;
+    edges.col(1) = x[tet[2]] - p0;
+    edges.col(2) = x[tet[3]] - p0;
+    const double det = edges.determinant();
+    const double scale = edges.colwise().norm().prod();
+    if (!(std::isfinite(det) && det > 1e-12 * scale)) continue;
+
+    // Barycentric coordinates (1..3 from the edge matrix's inverse, 0 as the rest) of the pixel
+    // centres: affine in (col, row) because the plane is.
+    const Eigen::Matrix3d inverse = edges.inverse();
+    const Eigen::Vector3d at_origin = inverse * (plane.origin_mm - p0);
+    const Eigen::Vector3d per_col = inverse * plane.per_col_mm;
+    const Eigen::Vector3d per_row = inverse * plane.per_row_mm;
+    cut.first_in_tet.fill({-kOpen, 0.0});
+    cut.last_in_tet.fill({kOpen, 0.0});
+    std::size_t next_first = 0, next_last = 0;
+    add_bound({1.0 - at_origin.sum(), -per_col.sum(), -per_row.sum(), -kBarycentricTolerance},
+              cut.first_in_tet, next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
+    for (int a = 0; a < 3; ++a) {
+      add_bound({at_origin[a], per_col[a], per_row[a], -kBarycentricTolerance}, cut.first_in_tet,
+                next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
+    }
+    if (cut.row_min > cut.row_max) continue;
+
+    // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
+    const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
+    Eigen::Matrix3d rest_edges;
+    rest_edges.col(0) = rest_mm_[tet[1]] - r0;
+    rest_edges.col(1) = rest_mm_[tet[2]] - r0;
+    rest_edges.col(2) = rest_mm_[tet[3]] - r0;
+    const Eigen::Matrix3d to_index = world_to_index * rest_edges;
+    cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
+    cut.index_per_col = to_index * per_col;
+    cut.index_per_row = to_index * per_row;
+
+    cut.clip_to_volume = !tet_inside_volume_[t];
+    cut.first_in_volume.fill({-kOpen, 0.0});
+    cut.last_in_volume.fill({kOpen, 0.0});
+    cut.volume_row_min = 0;
+    cut.volume_row_max = height_px_ - 1;
+    if (cut.clip_to_volume) {
+      // Voxel index a within [-1e-9, size - 1 + 1e-9], as Volume::sample_trilinear wants it. A
+      // row the volume misses entirely keeps its pixels in the tet, as background.
+      next_first = next_last = 0;
+      for (int a = 0; a < 3; ++a) {
+        add_bound(
+            {cut.index_at_origin[a], cut.index_per_col[a], cut.index_per_row[a], -kVolumeEdge},
+            cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
+            cut.volume_row_max);
+        add_bound({-cut.index_at_origin[a], -cut.index_per_col[a], -cut.index_per_row[a],
+                   -(index_max[a] + kVolumeEdge)},
+                  cut.first_in_volume, next_first, cut.last_in_volume, next_last,
+                  cut.volume_row_min, cut.volume_row_max);
+      }
+    }
+    cuts.push_back(cut);
   }
-  cuts.push_back(cut);
 }
 
 void FastSlicer::end_prepare() {

@@ -115,8 +115,6 @@ class FastSlicer {
   };
   struct Sampler;
 
-  // Appends tet t's cut to `cuts` if the plane cuts it inside the image (find_cuts' inner step).
-  void add_cut(std::size_t t, std::vector<CutTet>& cuts) const;
   void draw_cut_rows(const CutTet& cut, int row_first, int row_last, const Sampler& sampler,
                      std::span<std::uint8_t> out) const;
 
@@ -140,14 +138,6 @@ class FastSlicer {
   };
   VolumeGeometry volume_geometry_;
   std::vector<std::uint8_t> tet_inside_volume_;
-  // The tets in blocks of kBlockTets consecutive ones, each with the nodes its tets use (CSR): a
-  // block whose nodes all lie on one side of the plane is passed over without a look at its
-  // tets, and a node's side is worked out where it is needed, so a frame reads only the nodes
-  // of the blocks, not a per-node pass over the mesh first (on a 305k-tet mesh most blocks lie
-  // far from the plane).
-  static constexpr int kBlockTets = 256;
-  std::vector<std::int32_t> block_node_start_;
-  std::vector<std::uint32_t> block_nodes_;
 
   // Per frame.
   struct Frame;
@@ -155,6 +145,8 @@ class FastSlicer {
   const Volume<std::uint8_t>* volume_ = nullptr;
   std::span<const Eigen::Vector3d> positions_mm_;  // deformed, between begin and end_prepare
   int part_count_ = 1;
+  std::vector<double> node_distance_mm_;  // signed distance of each deformed node to the plane
+  std::vector<std::uint8_t> node_side_;   // and its side as bits (above, below, on)
   std::array<std::vector<CutTet>, kMaxParts> part_cuts_;  // cuts found by each part, tet order
   int cut_count_ = 0;
   std::vector<std::int32_t> band_start_;  // per band + 1: offset into band_cuts_
