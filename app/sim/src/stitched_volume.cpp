@@ -287,11 +287,11 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int parts = settings_.exchanges_per_frame;
   const double part_dt_s = frame_dt_s / parts;
   // The sub-volumes take the frame's budget as one piece does: the CG methods iterate while the
-  // frame has time (warm-started, they catch up over the next frames), the explicit MSDS retries
-  // a rejected frame with smaller steps only while there is time. The large case's touched
-  // sub-volumes took 22 ms (PCG FEM, 20 iterations each) and 34 ms (implicit MSDS) of the
-  // simulation's 4 ms at p50 with full solves. The sub-volumes step on the job system's threads,
-  // and the budget is one clock for them all.
+  // frame has time (warm-started, they catch up over the next frames), the explicit MSDS steps
+  // while there is time and retries a rejected frame with smaller steps only while there is. The
+  // large case's touched sub-volumes took 22 ms (PCG FEM, 20 iterations each) and 34 ms (implicit
+  // MSDS) of the simulation's 4 ms at p50 with full solves. The sub-volumes step on the job
+  // system's threads, and the budget is one clock for them all.
   StepBudget sub_budget;
   if (may_continue) {
     sub_budget = [this, &may_continue] {

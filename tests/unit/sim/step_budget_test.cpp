@@ -95,7 +95,7 @@ TEST(StepBudget, WithTimeToSpareEveryMethodIsExactlyStep) {
       EXPECT_FALSE(c.cut_short);
     }
     EXPECT_EQ(stepped->displacements_mm(), budgeted->displacements_mm());
-    if (kind == EngineKind::kMsdsExplicit || kind == EngineKind::kExactFem) {
+    if (kind == EngineKind::kExactFem) {
       EXPECT_EQ(asked, 0) << "nothing of its frame can wait";
     } else {
       EXPECT_GT(asked, 0);
@@ -136,6 +136,45 @@ TEST(StepBudget, PcgStopsWhereTheBudgetSays) {
   const EngineStepStats s = fem->step_within(&probe, 1.0 / 60, [&left] { return left-- > 0; });
   EXPECT_EQ(s.iterations, 5);  // the first, then one for each "yes"
   EXPECT_TRUE(s.cut_short);
+}
+
+TEST(StepBudget, ExplicitMsdsStopsSteppingWhereTheBudgetSaysAfterItsFirstCheck) {
+  const Block b = make_block();
+  const ProbeCollider probe = pressed(2.0);
+  auto msds = make(EngineKind::kMsdsExplicit, b, {});
+  int left = 3;
+  const EngineStepStats s = msds->step_within(&probe, 1.0 / 60, [&left] { return left-- > 0; });
+  // Four steps before the first question (the first inverted-tet check), then one for each "yes".
+  EXPECT_EQ(s.iterations, 4 + 3);
+  EXPECT_TRUE(s.cut_short);
+  EXPECT_FALSE(s.diverged);
+  EXPECT_TRUE(msds->displacements_mm().allFinite());
+}
+
+TEST(StepBudget, ExplicitMsdsWithoutTimeLagsAndSettlesWhereTheFullFramesDo) {
+  const Block b = make_block();
+  const ProbeCollider probe = pressed(2.0);
+  auto full = make(EngineKind::kMsdsExplicit, b, {});
+  auto starved = make(EngineKind::kMsdsExplicit, b, {});
+  full->step(&probe, 1.0 / 60);
+  const Eigen::VectorXd first_frame = full->displacements_mm();
+  for (int frame = 1; frame < 300; ++frame) full->step(&probe, 1.0 / 60);
+  const Eigen::VectorXd want = full->displacements_mm();
+  // Four steps of the 20 a frame: the same motion, five times as many frames.
+  for (int frame = 0; frame < 1500; ++frame) {
+    const EngineStepStats s = starved->step_within(&probe, 1.0 / 60, kNoTime);
+    ASSERT_EQ(s.iterations, 4) << "frame " << frame;
+    ASSERT_TRUE(s.cut_short);
+    ASSERT_FALSE(s.diverged) << "frame " << frame;
+    ASSERT_TRUE(starved->displacements_mm().allFinite());
+    const double from_first_frame = max_abs(starved->displacements_mm() - first_frame);
+    if (frame == 0) {
+      EXPECT_GT(from_first_frame, 0.1 * max_abs(first_frame)) << "a fifth of the way";
+    } else if (frame == 4) {
+      EXPECT_LT(from_first_frame, 1e-3 * max_abs(first_frame)) << "one full frame's steps";
+    }
+  }
+  EXPECT_LT(max_abs(starved->displacements_mm() - want), 0.02 * max_abs(want));
 }
 
 TEST(StepBudget, ImplicitMsdsWithoutTimeStaysFiniteAndSettlesNearTheFullSolve) {

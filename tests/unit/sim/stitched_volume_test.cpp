@@ -436,7 +436,11 @@ TEST(StitchedVolume, BudgetDefersAllButTheTouchedAndSelectiveOffStepsAll) {
   EXPECT_TRUE(budgeted.step_within(&probe, 1.0 / 60, [] { return false; }).cut_short);
   EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_stepped, 1);
   EXPECT_TRUE(budgeted.stepped(0));
-  EXPECT_EQ(budgeted.last_stitch_stats().sub_volumes_deferred, 3);
+  // Its neighbours were due and wait; one its few steps (the budget cut them too) did not pull
+  // may fall asleep, as may every other.
+  const StitchStepStats& s = budgeted.last_stitch_stats();
+  EXPECT_GE(s.sub_volumes_deferred, 1);
+  EXPECT_EQ(s.sub_volumes_deferred + s.sub_volumes_asleep, 15);
   StitchedVolume all = make_four_by_four(r, &jobs, false);
   EXPECT_FALSE(all.step(&probe, 1.0 / 60).cut_short);
   EXPECT_EQ(all.last_stitch_stats().sub_volumes_stepped, 16);

@@ -152,8 +152,9 @@ class MsdsEngine final : public DeformationEngine {
   // and damping forces the probe balances on them.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // A rejected frame is retried with smaller steps (2×, 4×, ... the steps) only while there is
-  // time, and the implicit integrator's CG stops when the budget runs out (one iteration at
-  // least). The frame's simulated time is always integrated in full.
+  // time; the explicit integrator stops stepping when the budget runs out (4 steps at least: the
+  // frame then integrates less simulated time), the implicit one's CG stops (one iteration at
+  // least; its steps integrate the frame's simulated time in full).
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }

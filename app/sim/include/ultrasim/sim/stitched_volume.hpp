@@ -83,10 +83,10 @@ class StitchedVolume final : public DeformationEngine {
   // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
   // every exchange (so give it 1/exchanges of the time left). Each sub-volume's own step takes
   // it too, as one piece's does (the CG methods stop iterating, one iteration at least; the
-  // explicit MSDS stops retrying): it is asked from the job system's threads, one at a time.
-  // Stats: the sum of the sub-volumes' iterations, contact nodes and contact forces' magnitudes,
-  // the most inverted tets of one, diverged if any did, and the strongest recovery; cut_short
-  // when a due sub-volume was left for later or a stepped one's own step was cut short.
+  // explicit MSDS stops stepping and retrying): it is asked from the job system's threads, one at a
+  // time. Stats: the sum of the sub-volumes' iterations, contact nodes and contact forces'
+  // magnitudes, the most inverted tets of one, diverged if any did, and the strongest recovery;
+  // cut_short when a due sub-volume was left for later or a stepped one's own step was cut short.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   // The time left for the budgeted work, µs, from the caller's clock (the library reads none);
