@@ -373,8 +373,7 @@ void MsdsEngine::size_buffers() {
   anchor_of_node_.assign(rest_.size(), -1);
   mass_scaled_for_anchor_mn_per_mm_.assign(rest_.size(), 0.0);
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
-    spring_elastic_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
-    spring_damping_mn_.assign(springs_.size(), Eigen::Vector3d::Zero());
+    spring_force_along_.assign(springs_.size(), SpringForceAlong{});
     spring_block_.assign(springs_.size(), ImplicitSpringBlock{});
     for (auto* buffer : {&inverse_diagonal_, &rhs_, &r_, &z_, &p_, &q_, &cg_velocity_}) {
       buffer->assign(rest_.size(), Eigen::Vector3d::Zero());

@@ -50,22 +50,26 @@ void MsdsEngine::compute_spring_forces(double dt_s) {
       // Force on node a; node b gets the opposite. Damping along the spring only (the relative
       // velocity projected on its direction): it resists stretching and compression but not a
       // rigid rotation of the edge, as in the published MSDS.
-      spring_elastic_mn_[s] = spring.stiffness_mn_per_mm * (length - spring.rest_length_mm) * dir;
-      spring_damping_mn_[s] =
-          spring.damping_mn_s_per_mm * (velocity_[spring.b] - velocity_[spring.a]).dot(dir) * dir;
+      spring_force_along_[s] = {
+          spring.stiffness_mn_per_mm * (length - spring.rest_length_mm),
+          spring.damping_mn_s_per_mm * (velocity_[spring.b] - velocity_[spring.a]).dot(dir)};
       spring_block_[s] = implicit_spring_block(spring, dir, length, dt_s);
     }
   });
 }
 
-void MsdsEngine::sum_node_forces(int node, Eigen::Vector3d& elastic_mn,
-                                 Eigen::Vector3d& damping_mn) const {
+void MsdsEngine::sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn,
+                                 Eigen::Vector3d& block_diagonal) const {
   elastic_mn.setZero();
   damping_mn.setZero();
+  block_diagonal.setZero();
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    const int s = adjacency_spring_[e];
+    const ImplicitSpringBlock& block = spring_block_[s];
     const double sign = adjacency_sign_[e];
-    elastic_mn += sign * spring_elastic_mn_[adjacency_spring_[e]];
-    damping_mn += sign * spring_damping_mn_[adjacency_spring_[e]];
+    elastic_mn += (sign * spring_force_along_[s].elastic_mn) * block.dir;
+    damping_mn += (sign * spring_force_along_[s].damping_mn) * block.dir;
+    block_diagonal += block.diagonal();
   }
 }
 
@@ -85,18 +89,16 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
       if (!pinned_[i]) {
-        Eigen::Vector3d elastic, damping;
-        sum_node_forces(i, elastic, damping);
+        Eigen::Vector3d elastic, damping, block_diagonal;
+        sum_node_forces(i, elastic, damping, block_diagonal);
         Eigen::Vector3d anchor_elastic, anchor_damping;
         anchor_force(i, anchor_elastic, anchor_damping);
         elastic += anchor_elastic;
         release_if_pulled_away(i, elastic + damping + anchor_damping);
         if (!held_[i]) {
-          Eigen::Vector3d diagonal =
-              Eigen::Vector3d::Constant(mass_kg_[i] + anchor_system_diagonal(i, dt_s));
-          for (int e = adjacency_begin_[i]; e < adjacency_begin_[i + 1]; ++e) {
-            diagonal += spring_block_[adjacency_spring_[e]].diagonal();
-          }
+          const Eigen::Vector3d diagonal =
+              Eigen::Vector3d::Constant(mass_kg_[i] + anchor_system_diagonal(i, dt_s)) +
+              block_diagonal;
           inverse_diagonal_[i] = diagonal.cwiseInverse();
           rhs_[i] = mass_kg_[i] * cg_velocity_[i] + dt_s * elastic;
           r_[i] = rhs_[i] - system_row_times(i, cg_velocity_, dt_s);

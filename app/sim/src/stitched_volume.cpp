@@ -305,18 +305,25 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // after the steps took last frame is kept back. Without sharing, the touched sub-volumes' CG
   // took the whole frame and their neighbours never stepped: the seams between them opened (the
   // large case's sweep-press: 0.4-2.5 mm; 0.13-0.17 shared). One pointer captured: no allocation.
+  // A batch's work does not end at its first "no": an implicit MSDS's CG stops, then its next
+  // step computes every spring's force and block and one iteration more (the large case: about
+  // as long as its CG had). What the batches did after their first "no" last frame is kept back
+  // too, so that the batch ends within its share instead of starting its tail there.
   struct BatchShare {
     StitchedVolume* self;
     const StepBudget* frame;
     const TimeLeftUs* time_left_us;
     std::int64_t reserve_us;
     std::int64_t left_at_first_question_us;  // -1 until the batch's first question
-  } share{this, &may_continue, &time_left_us, 0, -1};
+    std::int64_t left_at_first_no_us;        // -1 until the batch's first "no"
+  } share{this, &may_continue, &time_left_us, 0, -1, -1};
   const StepBudget share_budget = [&share] {
     std::lock_guard lock(share.self->budget_mutex_);
     const std::int64_t left_us = (*share.time_left_us)();
     if (share.left_at_first_question_us < 0) share.left_at_first_question_us = left_us;
-    return (*share.frame)() && left_us > share.reserve_us;
+    const bool yes = (*share.frame)() && left_us > share.reserve_us + share.self->batch_tail_us_;
+    if (!yes && share.left_at_first_no_us < 0) share.left_at_first_no_us = left_us;
+    return yes;
   };
   const int scheduled = static_cast<int>(schedule_.size());
   const int touched_batches = (touched + batch - 1) / batch;
@@ -329,6 +336,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int due_batches = std::max(
       1, touched_batches + std::clamp(batches_that_fit - touched_batches, 0, other_batches));
   std::int64_t batch_cost_us = 0;
+  std::int64_t batch_tail_us = -1;
   int next = 0;
   int b = 0;
   const auto step_next_batch = [&](int end) {
@@ -336,15 +344,19 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     const int batches_after = std::max(due_batches - 1 - b, 0);
     share.reserve_us =
         after_steps_us_ + std::max<std::int64_t>(left_at_start_us, 0) * batches_after / due_batches;
-    share.left_at_first_question_us = -1;
+    share.left_at_first_question_us = share.left_at_first_no_us = -1;
     const std::int64_t left_before_us = shares ? time_left_us() : 0;
     step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true,
                shares ? share_budget : sub_budget);
     if (shares) {
+      const std::int64_t left_at_end_us = time_left_us();
       // Up to the first question, or the whole batch if none asked (no further work wanted).
       const std::int64_t left_after_us =
-          share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : time_left_us();
+          share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : left_at_end_us;
       batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
+      if (share.left_at_first_no_us >= 0) {
+        batch_tail_us = std::max(batch_tail_us, share.left_at_first_no_us - left_at_end_us);
+      }
     }
     next += count;
     ++b;
@@ -360,6 +372,8 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   };
   while (next < scheduled && another_batch_fits()) step_next_batch(scheduled);
   if (shares) batch_cost_us_ = batch_cost_us;
+  // Kept from the last frame where a batch was told no (one with time to spare says nothing).
+  if (shares && batch_tail_us >= 0) batch_tail_us_ = batch_tail_us;
   for (int part = 1; part < parts; ++part) {
     for (int first = 0; first < next; first += batch) {
       step_batch(std::span(schedule_).subspan(first, std::min(batch, next - first)), probe,

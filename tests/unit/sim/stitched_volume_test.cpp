@@ -530,6 +530,40 @@ TEST(StitchedVolume, TouchedBatchesShareTheTimeLeft) {
   EXPECT_EQ(*std::min_element(greedy.begin(), greedy.end()), 1);
 }
 
+// A batch's work goes on after its first "no": the implicit MSDS's CG stops, then its second
+// step computes every spring's force and block and one iteration, and asks again. The virtual
+// clock charges a question 10 µs, a look at it 1 µs, and a "no" 200 µs more: the work that
+// follows it. The first frame's batches learn how long that takes and each overruns its share
+// by it, so the frame ends late; from the next frame on each batch keeps it back and the frame
+// ends in time (to within a question: the clock is only read between them).
+TEST(StitchedVolume, ABatchKeepsBackWhatItDidAfterItsFirstNo) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, EngineSettings{},
+                   stitching, &jobs);
+  std::int64_t left_us = 0;
+  const auto ask = [&left_us] {
+    left_us -= 10;
+    if (left_us > 0) return true;
+    left_us -= 200;
+    return false;
+  };
+  const auto time_left = [&left_us] { return left_us -= 1; };
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);  // where four sub-volumes meet
+  left_us = 2000;
+  v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+  ASSERT_EQ(v.last_stitch_stats().sub_volumes_touched, 4);
+  EXPECT_LT(left_us, -200) << "the last batch's tail starts at the deadline";
+  for (int frame = 1; frame < 4; ++frame) {
+    left_us = 2000;
+    v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+    EXPECT_GE(left_us, -11) << "frame " << frame;
+    EXPECT_TRUE(v.displacements_mm().allFinite());
+  }
+}
+
 // Frames with nothing touched (the probe lifted) still step the awake sub-volumes, shared or not,
 // after shared frames that measured a batch's cost (here each look at the clock costs 1 µs, so
 // a cost is measured): a plan of no batch at all divided by zero.

@@ -250,6 +250,9 @@ class StitchedVolume final : public DeformationEngine {
   std::int64_t after_steps_us_ = 0;
   // The last budgeted frame's costliest batch at its least (up to its first question), µs.
   std::int64_t batch_cost_us_ = 0;
+  // The longest a batch worked on after its first "no", µs, in the last budgeted frame that said
+  // one (step_sharing keeps it back from each batch's share).
+  std::int64_t batch_tail_us_ = 0;
 };
 
 }  // namespace ultrasim::sim
