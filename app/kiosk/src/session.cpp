@@ -232,8 +232,8 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
   // The method's work that can wait (CG iterations, sub-volumes the probe does not touch) goes
   // on only while a piece as long as the last still ends by the deadline (the first is measured
-  // with the frame's work before it, which can only overestimate it). A stitched method gives
-  // its first seam exchange 1/exchanges of the time: the sub-volumes it admits step in each.
+  // with the frame's work before it, which can only overestimate it). A stitched method shares
+  // the time left over its seam exchanges and their batches itself (step_sharing).
   struct BatchClock {
     const hal::Clock& clock;
     hal::TimestampUs deadline_us;
@@ -244,8 +244,7 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
       last_call_us = now;
       return now + last_batch_us < deadline_us;
     }
-  } batches{clock_, t0 + (deadline_us - t0) / (stitched_ ? stitched_->exchanges_per_frame() : 1),
-            t0};
+  } batches{clock_, deadline_us, t0};
   // One pointer: small enough for std::function's local buffer, so no allocation per frame.
   const auto time_left = [&batches] { return batches.may_start_another(); };
   const sim::StepBudget budget = deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left};

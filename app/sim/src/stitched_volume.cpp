@@ -329,7 +329,11 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int touched_batches = (touched + batch - 1) / batch;
   const int other_batches = (scheduled - touched + batch - 1) / batch;
   const bool shares = may_continue && time_left_us;
-  const std::int64_t left_at_start_us = shares ? time_left_us() - after_steps_us_ : 0;
+  // The time left is shared over the frame's exchanges evenly: this first one plans its batches
+  // on its part and keeps the others' back.
+  const std::int64_t left_at_start_us =
+      shares ? std::max<std::int64_t>(time_left_us() - after_steps_us_, 0) / parts : 0;
+  const std::int64_t later_parts_us = left_at_start_us * (parts - 1);
   const int batches_that_fit =
       shares && batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us / batch_cost_us_) : 1;
   // At least one: a frame with nothing touched still shares its time among those that run.
@@ -343,7 +347,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     const int count = std::min(batch, end - next);
     const int batches_after = std::max(due_batches - 1 - b, 0);
     share.reserve_us =
-        after_steps_us_ + std::max<std::int64_t>(left_at_start_us, 0) * batches_after / due_batches;
+        after_steps_us_ + later_parts_us + left_at_start_us * batches_after / due_batches;
     share.left_at_first_question_us = share.left_at_first_no_us = -1;
     const std::int64_t left_before_us = shares ? time_left_us() : 0;
     step_batch(std::span(schedule_).subspan(next, count), probe, part_dt_s, true,
@@ -368,16 +372,26 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     if (!may_continue) return true;
     if (!shares) return may_continue();
     const std::lock_guard lock(budget_mutex_);
-    return time_left_us() > (b < due_batches ? 0 : batch_cost_us_) + after_steps_us_;
+    return time_left_us() >
+           (b < due_batches ? 0 : batch_cost_us_) + after_steps_us_ + later_parts_us;
   };
   while (next < scheduled && another_batch_fits()) step_next_batch(scheduled);
   if (shares) batch_cost_us_ = batch_cost_us;
   // Kept from the last frame where a batch was told no (one with time to spare says nothing).
   if (shares && batch_tail_us >= 0) batch_tail_us_ = batch_tail_us;
+  // The later exchanges step the same sub-volumes, each batch its even share of the part's time
+  // (the part's: what is left over the parts to go).
+  const int batches_stepped = (next + batch - 1) / batch;
   for (int part = 1; part < parts; ++part) {
-    for (int first = 0; first < next; first += batch) {
+    const std::int64_t part_us =
+        shares ? std::max<std::int64_t>(time_left_us() - after_steps_us_, 0) / (parts - part) : 0;
+    for (int j = 0; j < batches_stepped; ++j) {
+      share.reserve_us = after_steps_us_ + part_us * (parts - part - 1) +
+                         part_us * (batches_stepped - 1 - j) / batches_stepped;
+      share.left_at_first_question_us = share.left_at_first_no_us = -1;
+      const int first = j * batch;
       step_batch(std::span(schedule_).subspan(first, std::min(batch, next - first)), probe,
-                 part_dt_s, false, sub_budget);
+                 part_dt_s, false, shares ? share_budget : sub_budget);
     }
   }
   const std::int64_t left_after_steps_us = shares ? time_left_us() : 0;

@@ -564,6 +564,39 @@ TEST(StitchedVolume, ABatchKeepsBackWhatItDidAfterItsFirstNo) {
   }
 }
 
+// With two seam exchanges a frame, the time left is shared over both: the first exchange's
+// batch is stopped by its share, with half the frame left, and the second iterates until the
+// frame's own clock says no, once. (Before, the first took the whole frame, so the clock said no
+// there and again to each sub-volume of the second, which ran its least work past the
+// deadline.) One sub-volume touched, one thread: one batch. Each question costs 10 µs.
+TEST(StitchedVolume, TheLaterExchangesGetTheirShareOfTheTime) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  stitching.exchanges_per_frame = 2;
+  EngineSettings engine;
+  engine.fem.pcg_iterations_per_frame = 400;  // 200 a part: the budget stops them
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, engine, stitching, &jobs);
+  std::int64_t left_us = 1000;
+  int questions = 0, noes = 0;
+  const auto ask = [&] {
+    ++questions;
+    const bool yes = (left_us -= 10) > 0;
+    noes += !yes;
+    return yes;
+  };
+  const auto time_left = [&left_us] { return left_us; };
+  // Inside sub-volume (0, 0), away from its seams.
+  const ProbeCollider probe = sphere_probe(2.0, 2.0, 1.5, 3.0);
+  v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+  ASSERT_EQ(v.last_stitch_stats().sub_volumes_touched, 1);
+  ASSERT_EQ(v.last_stitch_stats().sub_volumes_stepped, 1);
+  EXPECT_GE(questions, 90) << "both exchanges iterated while the frame had time";
+  EXPECT_EQ(noes, 1) << "the first exchange was stopped by its share, not by the frame's end";
+  EXPECT_GE(left_us, -10);
+}
+
 // Frames with nothing touched (the probe lifted) still step the awake sub-volumes, shared or not,
 // after shared frames that measured a batch's cost (here each look at the clock costs 1 µs, so
 // a cost is measured): a plan of no batch at all divided by zero.

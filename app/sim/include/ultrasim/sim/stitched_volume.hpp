@@ -93,7 +93,8 @@ class StitchedVolume final : public DeformationEngine {
   // asked from the job system's threads, one at a time.
   using TimeLeftUs = std::function<std::int64_t()>;
   // step_within(), knowing the time left: the time (less what the work after the steps took last
-  // frame) is shared evenly over the touched sub-volumes' batches and as many of the other due
+  // frame) is shared evenly over the exchanges_per_frame exchanges and, within each, over the
+  // touched sub-volumes' batches and as many of the other due
   // ones as fit at last frame's least batch cost (one CG iteration); each batch stops its own
   // work once its share is spent, and a batch beyond those planned starts only if one at that
   // cost still ends in time. (Without it the first touched batch's CG took the whole share, each
