@@ -137,6 +137,7 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<Eigen::Vector3d> block_center_mm;
     std::vector<double> block_half_diagonal_mm;
     std::vector<Eigen::AlignedBox3d> block_bounds;
+    std::vector<std::uint8_t> block_near_probe;  // per block, refreshed with the anchors
     double max_seam_force_mn = 0.0;
     double max_seam_gap_mm = 0.0;
     double last_motion_mm = 0.0;
@@ -162,7 +163,9 @@ class StitchedVolume final : public DeformationEngine {
   int plan_frame(const ProbeCollider* probe);
   // Order among the due sub-volumes not touched: seam pull × (1 + frames waited).
   double priority(int sub) const;
-  void refresh_anchors(int sub);
+  // Each shared node's anchor: k × (copies − 1) toward the other copies' mean, or, in a sub-volume
+  // the probe may touch, toward where the probe pushes that mean out to if it lies inside it.
+  void refresh_anchors(int sub, const ProbeCollider* probe);
   // Whether the probe may touch a node of the sub-volume (its blocks' bounds at the last step).
   bool within_reach(const SubVolume& sub, const ProbeCollider& probe) const;
   // One part of a frame for each of `subs`, anchors first; `first_part`: the frame's first
