@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "ultrasim/geometry/tet_edges.hpp"
+
 namespace ultrasim::geometry {
 
 namespace {
@@ -27,11 +29,8 @@ void TetLocator::rebuild(std::span<const Eigen::Vector3d> positions_mm) {
   for (std::size_t t = 0; t < tet_count; ++t) {
     const Tet& tet = tets_[t];
     const Eigen::Vector3d& p0 = positions_mm[tet[0]];
-    Eigen::Matrix3d edges;
-    edges << positions_mm[tet[1]] - p0, positions_mm[tet[2]] - p0, positions_mm[tet[3]] - p0;
-    const double det = edges.determinant();
-    const double scale = edges.colwise().norm().prod();
-    usable_[t] = std::isfinite(det) && det > 1e-12 * scale;
+    const Eigen::Matrix3d edges = tet_edge_matrix(positions_mm, tet);
+    usable_[t] = usable_tet(edges);
     if (!usable_[t]) {
       ++degenerate_tets_;
       continue;

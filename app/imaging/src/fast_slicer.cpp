@@ -8,6 +8,7 @@
 
 #include "grid_row_runs.hpp"
 #include "pixel_plane.hpp"
+#include "ultrasim/geometry/tet_edges.hpp"
 
 namespace ultrasim::imaging {
 
@@ -266,13 +267,8 @@ void FastSlicer::find_cuts(int part) {
 
     // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
     const Eigen::Vector3d& p0 = x[tet[0]];
-    Eigen::Matrix3d edges;
-    edges.col(0) = x[tet[1]] - p0;
-    edges.col(1) = x[tet[2]] - p0;
-    edges.col(2) = x[tet[3]] - p0;
-    const double det = edges.determinant();
-    const double scale = edges.colwise().norm().prod();
-    if (!(std::isfinite(det) && det > 1e-12 * scale)) continue;
+    const Eigen::Matrix3d edges = geometry::tet_edge_matrix(x, tet);
+    if (!geometry::usable_tet(edges)) continue;
 
     // Barycentric coordinates (1..3 from the edge matrix's inverse, 0 as the rest) of the pixel
     // centres: affine in (col, row) because the plane is.
@@ -293,11 +289,7 @@ void FastSlicer::find_cuts(int part) {
 
     // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
     const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
-    Eigen::Matrix3d rest_edges;
-    rest_edges.col(0) = rest_mm_[tet[1]] - r0;
-    rest_edges.col(1) = rest_mm_[tet[2]] - r0;
-    rest_edges.col(2) = rest_mm_[tet[3]] - r0;
-    const Eigen::Matrix3d to_index = world_to_index * rest_edges;
+    const Eigen::Matrix3d to_index = world_to_index * geometry::tet_edge_matrix(rest_mm_, tet);
     cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
     cut.index_per_col = to_index * per_col;
     cut.index_per_row = to_index * per_row;

@@ -8,6 +8,7 @@
 
 #include "grid_row_runs.hpp"
 #include "pixel_plane.hpp"
+#include "ultrasim/geometry/tet_edges.hpp"
 
 namespace ultrasim::imaging {
 
@@ -103,11 +104,8 @@ void PublishedSlicer::prepare(const Volume<std::uint8_t>& volume,
 
     // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
     const Eigen::Vector3d& p0 = x[tet[0]];
-    Eigen::Matrix3d edges;
-    edges << x[tet[1]] - p0, x[tet[2]] - p0, x[tet[3]] - p0;
-    const double det = edges.determinant();
-    const double scale = edges.colwise().norm().prod();
-    if (!(std::isfinite(det) && det > 1e-12 * scale)) continue;
+    const Eigen::Matrix3d edges = geometry::tet_edge_matrix(x, tet);
+    if (!geometry::usable_tet(edges)) continue;
 
     // The cut lies inside the tet's shadow on the plane, so the projected nodes bound its pixels.
     constexpr double kInf = std::numeric_limits<double>::infinity();
