@@ -259,7 +259,8 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "their seams first (published: 1)."));
   t.add(field("exchanges_per_frame", &S::exchanges_per_frame, IntegerIn<int>{1, 64},
               "Seam exchanges per frame: each sub-volume's frame in this many parts, anchors "
-              "refreshed between them; must divide [msds] steps_per_frame."));
+              "refreshed between them (2: the seams narrower than with 1 in the same time); "
+              "must divide [msds] steps_per_frame."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

@@ -191,6 +191,54 @@ void budget_args(benchmark::internal::Benchmark* bench) {
   }
 }
 
+// A stitched sub-volume's step with no time to spare (a budget that always says no), what each
+// batch of sub-volumes costs the kiosk at least: the stitchable methods on one thread (a
+// sub-volume steps on one), a 15³ block of the scene whose four sides are seam bands two nodes
+// wide held by anchor springs (20 E, as [stitching]'s default) to where they are, as the large
+// case's inner sub-volumes. The PCG FEM: its contacts, its residual, one CG iteration, its
+// forces and inverted-tet count; the explicit MSDS: its 4 steps up to its first check; the
+// implicit MSDS: 2 steps, each every spring's force and block, every node's row and one
+// iteration. `engines`: 1 steps the same engine every time (its data stays in the caches); 12
+// take turns, as the kiosk's sub-volumes do (each step then reads its data from memory).
+//   build/ci/tests/bench/engine_budget_bench --benchmark_filter=Starved
+//       --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+void BM_Starved(benchmark::State& state) {
+  const auto kind = static_cast<sim::EngineKind>(state.range(0));
+  constexpr int kNodes = 15;
+  const bench::Block& b = bench::block(kNodes, kNodes, kNodes);
+  std::vector<std::unique_ptr<sim::DeformationEngine>> engines;
+  for (int e = 0; e < state.range(1); ++e) {
+    engines.push_back(sim::make_engine(kind, b.mesh, b.materials, b.fixed, {}, b.skin, nullptr));
+  }
+  std::vector<sim::AnchorSpring> anchors;
+  for (int node = 0; node < b.mesh.node_count(); ++node) {
+    const int i = node % kNodes, j = node / kNodes % kNodes;
+    const bool seam = i < 2 || i >= kNodes - 2 || j < 2 || j >= kNodes - 2;
+    if (seam && !b.fixed[node]) {
+      anchors.push_back({node, b.mesh.rest_positions_mm[node], 20.0 * 50.0});
+    }
+  }
+  const sim::StepBudget no_time = [] { return false; };
+  int frame = 0;
+  for (auto _ : state) {
+    const auto probe = bench::probe_at(frame++);
+    auto& engine = *engines[frame % engines.size()];
+    engine.set_anchor_springs(anchors);
+    benchmark::DoNotOptimize(engine.step_within(&probe, bench::kFrameDtS, no_time));
+  }
+  state.SetLabel(std::string(sim::engine_key(kind)));
+  state.counters["nodes"] = b.mesh.node_count();
+  state.counters["anchors"] = static_cast<double>(anchors.size());
+}
+
+BENCHMARK(BM_Starved)
+    ->ArgNames({"method", "engines"})
+    ->ArgsProduct({{static_cast<int>(sim::EngineKind::kPcgFem),
+                    static_cast<int>(sim::EngineKind::kMsdsExplicit),
+                    static_cast<int>(sim::EngineKind::kMsdsImplicit)},
+                   {1, 12}})
+    ->Unit(benchmark::kMillisecond);
+
 // Every method is timed over the same frames: one slide across and back (40 frames), from where
 // the accuracy frames left the probe. A fixed count also runs each case once (with a minimum time
 // Google Benchmark reruns the function, accuracy frames and all). Real time: the per-frame work

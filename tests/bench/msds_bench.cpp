@@ -83,22 +83,6 @@ void BM_Engine(benchmark::State& state) {
   state.counters["diverged_frames"] = static_cast<double>(diverged);
 }
 
-// The implicit MSDS's frame with no time to spare (a budget that always says no): its 2 steps'
-// fixed work (every spring's force and block, every node's row) and one CG iteration each, the
-// least a stitched sub-volume's frame costs in the kiosk. One thread, as a sub-volume steps.
-void BM_ImplicitStarved(benchmark::State& state) {
-  const bench::Block& b = block_of(state);
-  sim::MsdsEngine engine(sim::MsdsIntegrator::kImplicitEuler, b.mesh, b.materials, b.fixed,
-                         sim::MsdsSettings{}, nullptr);
-  const sim::StepBudget no_time = [] { return false; };
-  int frame = 0;
-  for (auto _ : state) {
-    const auto probe = bench::probe_at(frame++);
-    benchmark::DoNotOptimize(engine.step_within(&probe, bench::kFrameDtS, no_time));
-  }
-  state.counters["nodes"] = b.mesh.node_count();
-}
-
 void size_args(benchmark::internal::Benchmark* bench) {
   bench->ArgNames({"nx", "ny", "nz"});
   for (const auto& s : kSizes) bench->Args({s[0], s[1], s[2]});
@@ -113,11 +97,6 @@ void engine_args(benchmark::internal::Benchmark* bench) {
 
 BENCHMARK(BM_NaiveReference)->Apply(size_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Engine)->Apply(engine_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_ImplicitStarved)
-    ->Apply(size_args)
-    ->Args({15, 15, 15})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
 
 // The console output as usual, then per size the engine's median wall time per frame as a ratio
 // to the reference's of this run.

@@ -117,6 +117,13 @@ class StitchedVolume final : public DeformationEngine {
   // Whether the last frame stepped the sub-volume, and its step's stats.
   bool stepped(int sub) const { return subs_[sub].stepped; }
   const EngineStepStats& last_step_stats(int sub) const { return subs_[sub].last_stats; }
+  // Whether the probe could reach the sub-volume in the last frame (it stepped whatever the time).
+  bool touched(int sub) const { return subs_[sub].touched; }
+  // The sub-volumes the last frame stepped, in the order they stepped: one batch of as many as
+  // the job system has threads after another.
+  std::span<const int> step_order() const {
+    return std::span(schedule_).first(static_cast<std::size_t>(stats_.sub_volumes_stepped));
+  }
 
  private:
   struct SubVolume {
@@ -161,6 +168,10 @@ class StitchedVolume final : public DeformationEngine {
   // The order this frame's sub-volumes step in (schedule_), touched ones first; returns how many
   // of them are touched.
   int plan_frame(const ProbeCollider* probe);
+  // Reorders schedule_'s first `due` entries (the first `touched` of them touched) into batches
+  // of `batch` (one per thread) whose sub-volumes share the fewest seam nodes; returns how many
+  // of its first entries must step: through the last batch that holds a touched one.
+  int order_into_batches(int touched, int due, int batch);
   // Order among the due sub-volumes not touched: seam pull × (1 + frames waited).
   double priority(int sub) const;
   // Each shared node's anchor: k × (copies − 1) toward the other copies' mean, or, in a sub-volume
@@ -228,6 +239,8 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Copy> copies_;
   std::vector<double> seam_stiffness_mn_per_mm_;
   std::vector<int> shared_nodes_;  // grid nodes with more than one copy
+  // Per pair of sub-volumes (s × count + t), the grid nodes both hold (0 on the diagonal).
+  std::vector<int> shared_node_count_;
   std::vector<std::uint8_t> fixed_;
   std::unique_ptr<CoarseCorrection> coarse_;  // null: off
   std::vector<int> corrected_;                // per frame, sized once
@@ -237,6 +250,8 @@ class StitchedVolume final : public DeformationEngine {
 
   // Per frame, sized once.
   std::vector<int> schedule_;
+  std::vector<int> batched_;
+  std::vector<std::uint8_t> placed_;
   std::vector<std::uint8_t> due_;
   std::vector<Eigen::Vector3d> shown_;
   // Per grid node: the widest gap between its copies and the strongest pull on one, as of the
