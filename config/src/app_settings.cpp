@@ -258,9 +258,12 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "Selective: sub-volumes beyond the touched and their neighbours, hardest pulled by "
               "their seams first (published: 1)."));
   t.add(field("exchanges_per_frame", &S::exchanges_per_frame, IntegerIn<int>{1, 64},
-              "Seam exchanges per frame: each sub-volume's frame in this many parts, anchors "
-              "refreshed between them (2: the seams narrower than with 1 in the same time); "
-              "must divide [msds] steps_per_frame."));
+              "PCG FEM: seam exchanges per frame, each sub-volume's frame in this many parts, "
+              "anchors refreshed between them (2: the seams narrower than with 1 in the same "
+              "time)."));
+  t.add(field("msds_exchanges_per_frame", &S::msds_exchanges_per_frame, IntegerIn<int>{1, 64},
+              "MSDS (both): seam exchanges per frame; must divide [msds] steps_per_frame (1: "
+              "with 2 the large soak's deep press refused more frames)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

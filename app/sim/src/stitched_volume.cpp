@@ -72,13 +72,18 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   if (stitching.extra_sub_volumes_per_frame < 0) {
     throw std::invalid_argument("StitchedVolume: extra_sub_volumes_per_frame must be >= 0");
   }
-  if (stitching.exchanges_per_frame < 1 ||
-      engine_settings.msds.steps_per_frame % stitching.exchanges_per_frame != 0) {
-    throw std::invalid_argument("StitchedVolume: exchanges_per_frame (" +
-                                std::to_string(stitching.exchanges_per_frame) +
+  if (stitching.exchanges_per_frame < 1) {
+    throw std::invalid_argument("StitchedVolume: exchanges_per_frame must be >= 1");
+  }
+  if (stitching.msds_exchanges_per_frame < 1 ||
+      engine_settings.msds.steps_per_frame % stitching.msds_exchanges_per_frame != 0) {
+    throw std::invalid_argument("StitchedVolume: msds_exchanges_per_frame (" +
+                                std::to_string(stitching.msds_exchanges_per_frame) +
                                 ") must be >= 1 and divide the MSDS's steps_per_frame (" +
                                 std::to_string(engine_settings.msds.steps_per_frame) + ")");
   }
+  const bool msds = method == EngineKind::kMsdsExplicit || method == EngineKind::kMsdsImplicit;
+  exchanges_per_frame_ = msds ? stitching.msds_exchanges_per_frame : stitching.exchanges_per_frame;
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   max_inverted_tets_ = static_cast<int>(one_piece_inverted_fraction(method, engine_settings) *
                                         static_cast<double>(mesh_.tet_count()));
@@ -174,7 +179,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     const double tet_share = static_cast<double>(mesh_.tet_count()) / mesh.tet_count();
     EngineSettings settings = engine_settings;
     // A frame in exchanges_per_frame parts: the same steps and iterations in all.
-    const int parts = settings_.exchanges_per_frame;
+    const int parts = exchanges_per_frame_;
     settings.msds.steps_per_frame /= parts;
     settings.msds.implicit_steps_per_frame =
         std::max(1, settings.msds.implicit_steps_per_frame / parts);
@@ -296,7 +301,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // The sub-volumes the probe may touch always step: skipping one would let the probe pass
   // through the tissue.
   // The first exchange picks which sub-volumes step this frame; the others step the same ones.
-  const int parts = settings_.exchanges_per_frame;
+  const int parts = exchanges_per_frame_;
   const double part_dt_s = frame_dt_s / parts;
   // The sub-volumes take the frame's budget as one piece does: the CG methods iterate while the
   // frame has time (warm-started, they catch up over the next frames), the explicit MSDS steps
@@ -517,12 +522,12 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
   // Two sub-volumes of a batch step at once, each anchored to where the other's copies were:
   // where they share a seam, each copy takes its twin's old place and the twin its own (the
   // Jacobi swap), and under a moving probe that gap grows from frame to frame (the large case's
-  // sweep-press, every due sub-volume stepped: 1.23 mm on two threads, 0.14 mm on one). A batch
-  // is therefore filled, in the schedule's order, with the sub-volumes that share the fewest
-  // nodes with it, none where the schedule holds such: a sub-volume then steps from its
-  // neighbours' new copies, as on one thread. Only among the due: filling a batch from further
-  // down the schedule would step a sub-volume that pulls less on its seams instead of one that
-  // pulls more (the large case's seams, 4 ms: 0.19-0.24 mm against 0.13-0.17 in schedule order).
+  // sweep-press, every due sub-volume stepped: 0.46-1.23 mm on two threads, 0.14 mm on one). A
+  // batch is therefore filled, in the schedule's order, with the sub-volumes that share the
+  // fewest nodes with it, none where the schedule holds such: a sub-volume then mostly steps
+  // from its neighbours' new copies, as on one thread (0.097 mm). Only among the due: filling a
+  // batch from further down the schedule would step a sub-volume that pulls less on its seams
+  // instead of one that pulls more.
   const int scheduled = due;
   const int count = sub_volume_count();
   batched_.clear();
@@ -535,9 +540,16 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
     placed_[i] = 1;
     if (i < touched) must_step = static_cast<int>(batched_.size());
     while (static_cast<int>(batched_.size() - first) < batch) {
+      // A touched sub-volume's batch is filled with touched ones while any is left: with
+      // untouched partners the touched ones would take twice the batches, which step whatever
+      // the time (the implicit MSDS's large soak: simulation p90 4.9 → 6.2 ms).
+      const bool touched_left =
+          i < touched && std::any_of(placed_.begin() + i + 1, placed_.begin() + touched,
+                                     [](std::uint8_t placed) { return placed == 0; });
+      const int end = touched_left ? touched : scheduled;
       int best = -1;
       long best_shared = 0;
-      for (int j = i + 1; j < scheduled && !(best >= 0 && best_shared == 0); ++j) {
+      for (int j = i + 1; j < end && !(best >= 0 && best_shared == 0); ++j) {
         if (placed_[j]) continue;
         long shared = 0;
         for (std::size_t k = first; k < batched_.size(); ++k) {

@@ -56,6 +56,7 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.stitching.selective, b.stitching.selective);
   EXPECT_EQ(a.stitching.extra_sub_volumes_per_frame, b.stitching.extra_sub_volumes_per_frame);
   EXPECT_EQ(a.stitching.exchanges_per_frame, b.stitching.exchanges_per_frame);
+  EXPECT_EQ(a.stitching.msds_exchanges_per_frame, b.stitching.msds_exchanges_per_frame);
   EXPECT_EQ(a.stitching.coarse_correction, b.stitching.coarse_correction);
   EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
   EXPECT_EQ(a.stitching.sleep_motion_mm, b.stitching.sleep_motion_mm);
@@ -156,6 +157,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.selective = false;
   changed.stitching.extra_sub_volumes_per_frame = 3;
   changed.stitching.exchanges_per_frame = 4;
+  changed.stitching.msds_exchanges_per_frame = 3;
   changed.stitching.coarse_correction = false;
   changed.stitching.sleep_force_mn = 0.25;
   changed.stitching.sleep_motion_mm = 2e-3;

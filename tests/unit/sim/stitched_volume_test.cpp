@@ -395,7 +395,7 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   double error[2] = {0.0, 0.0};
   for (int i = 0; i < 2; ++i) {
     StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
-    stitching.exchanges_per_frame = i == 0 ? 1 : 10;
+    stitching.msds_exchanges_per_frame = i == 0 ? 1 : 10;
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, stitching,
                             &jobs);
     for (int f = 0; f < 6; ++f) stitched.step(&probe, 1.0 / 60);
@@ -404,8 +404,12 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   }
   EXPECT_LT(error[1], 0.5 * error[0]) << error[0] << " with one exchange, " << error[1];
   StitchingSettings three{.sub_volumes = {2, 1, 1}};
-  three.exchanges_per_frame = 3;  // does not divide the 20 MSDS steps of a frame
+  three.msds_exchanges_per_frame = 3;  // does not divide the 20 MSDS steps of a frame
   EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, three),
+               std::invalid_argument);
+  StitchingSettings none{.sub_volumes = {2, 1, 1}};
+  none.msds_exchanges_per_frame = 0;
+  EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, none),
                std::invalid_argument);
 }
 
@@ -569,9 +573,6 @@ TEST(StitchedVolume, ABatchKeepsBackWhatItDidAfterItsFirstNo) {
   hal::InlineJobSystem jobs;
   StitchingSettings stitching;
   stitching.sub_volumes = {4, 4, 1};
-  // Two implicit steps in one part: the tail is the second step. (The virtual clock charges the
-  // tail only for its own "no", not for a share's, so it cannot show a later exchange's.)
-  stitching.exchanges_per_frame = 1;
   StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, EngineSettings{},
                    stitching, &jobs);
   std::int64_t left_us = 0;
@@ -635,10 +636,12 @@ TEST(StitchedVolume, TheLaterExchangesGetTheirShareOfTheTime) {
 // the two share a seam, each copy takes its twin's old place (the Jacobi swap), and under a
 // moving probe that gap grows from frame to frame (the large case's sweep-press with time for
 // every due sub-volume, in schedule order: widest seam 0.46-1.23 mm on two threads, 0.14 mm on
-// one). A batch is filled with sub-volumes that share no seam where the frame's due ones allow.
-// Here the probe presses where four sub-volumes meet, so the four touched ones share nodes with
-// one another; all sixteen are due.
-TEST(StitchedVolume, BatchesPairSubVolumesThatShareNoSeam) {
+// one). A batch is filled with the due sub-volumes that share the fewest seam nodes with it:
+// the touched ones among themselves (they step whatever the time: no more batches of them than
+// needed), the others none where they can. Here the probe presses where four sub-volumes meet,
+// so the four touched ones share nodes with one another, the diagonal pairs fewest (a corner
+// column); all sixteen are due.
+TEST(StitchedVolume, BatchesPairSubVolumesThatShareTheFewestSeamNodes) {
   const Region r = make_region({26, 26, 5});
   drivers::posix::ThreadPool jobs(2);
   StitchingSettings stitching;
@@ -651,23 +654,17 @@ TEST(StitchedVolume, BatchesPairSubVolumesThatShareNoSeam) {
   ASSERT_EQ(v.last_stitch_stats().sub_volumes_touched, 4);
   const std::span<const int> order = v.step_order();
   ASSERT_EQ(order.size(), 16u);
-  const auto share_nodes = [&](int a, int b) {
-    return (v.box(a).index - v.box(b).index).cwiseAbs().maxCoeff() <= 1;
+  const auto offset = [&](std::size_t b) {
+    return (v.box(order[b]).index - v.box(order[b + 1]).index).cwiseAbs().eval();
   };
-  int touched_batches = 0, batches_sharing = 0;
-  for (std::size_t b = 0; b < order.size(); b += 2) {
-    const int touched = v.touched(order[b]) + v.touched(order[b + 1]);
-    EXPECT_LE(touched, 1) << "batch " << b / 2 << " steps two touched sub-volumes at once";
-    touched_batches += touched > 0;
-    batches_sharing += share_nodes(order[b], order[b + 1]);
+  for (std::size_t b = 0; b < 4; b += 2) {
+    EXPECT_TRUE(v.touched(order[b]) && v.touched(order[b + 1])) << "batch " << b / 2;
+    EXPECT_EQ(offset(b), Eigen::Vector3i(1, 1, 0)) << "batch " << b / 2 << ": not diagonal";
   }
-  EXPECT_EQ(touched_batches, 4);
-  // The touched ones first: they step whatever the time.
-  for (std::size_t b = 0; b < 8; b += 2) {
-    EXPECT_TRUE(v.touched(order[b]) || v.touched(order[b + 1])) << "batch " << b / 2;
-  }
-  // Greedy: the last batches take what is left; in schedule order, 6 of the 8 shared.
-  EXPECT_LE(batches_sharing, 2);
+  int batches_sharing = 0;
+  for (std::size_t b = 4; b < order.size(); b += 2) batches_sharing += offset(b).maxCoeff() <= 1;
+  // In schedule order the touched ones paired across a face, and 6 of the 8 batches shared.
+  EXPECT_EQ(batches_sharing, 0);
 }
 
 TEST(StitchedVolume, FramesWithNothingTouchedStepTheAwakeAfterSharedFrames) {

@@ -186,14 +186,19 @@ struct StitchingSettings {
   // first. false: every sub-volume every frame.
   bool selective = true;
   int extra_sub_volumes_per_frame = 1;
-  // Seam exchanges per frame: each sub-volume's frame is cut into this many parts (the MSDS's
-  // steps, the PCG FEM's iterations; the same work in all) and the seams' anchors are refreshed
-  // between them, so a disturbance crosses this many seams a frame (published: several
-  // iterations, then the stitching forces). Must divide MsdsSettings::steps_per_frame. Two: on
-  // the large case's sweep-press (4 ms for the simulation, two threads) the PCG FEM's widest seam
-  // 0.10-0.12 mm against 0.17-0.25 with one, and all three methods' forces nearer one piece's,
-  // in the same time (docs/accuracy.md).
+  // Seam exchanges per frame of the PCG FEM: each sub-volume's frame is cut into this many parts
+  // (its CG iterations shared among them) and the seams' anchors are refreshed between them, so
+  // a disturbance crosses this many seams a frame (published: several iterations, then the
+  // stitching forces). Two: on the large case's sweep-press (4 ms for the simulation, two
+  // threads) the widest seam 0.09-0.12 mm against 0.13-0.16 with one and the forces within 0.5 N
+  // of one piece's, in the same time (docs/accuracy.md).
   int exchanges_per_frame = 2;
+  // The same for the MSDS (both integrators: the explicit one's steps, the implicit one's
+  // implicit steps shared among the parts); must divide MsdsSettings::steps_per_frame. One: with
+  // two the sweep-press's seams and forces came nearer one piece's, but the large soak's deep
+  // press refused 4-250 explicit frames against 24-30, and the implicit MSDS's frames there
+  // were slower (p99 18-20 → 22-24 ms; docs/accuracy.md).
+  int msds_exchanges_per_frame = 1;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
   // added to every sub-volume, so a disturbance reaches across the region in one frame instead

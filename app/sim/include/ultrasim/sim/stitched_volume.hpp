@@ -108,7 +108,8 @@ class StitchedVolume final : public DeformationEngine {
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
   const StitchStepStats& last_stitch_stats() const { return stats_; }
-  int exchanges_per_frame() const { return settings_.exchanges_per_frame; }
+  // This method's: StitchingSettings::exchanges_per_frame, or msds_exchanges_per_frame.
+  int exchanges_per_frame() const { return exchanges_per_frame_; }
   const geometry::TetMesh& mesh() const { return mesh_; }
   int sub_volume_count() const { return static_cast<int>(subs_.size()); }
   const SubVolumeBox& box(int sub) const { return subs_[sub].box; }
@@ -239,6 +240,7 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Copy> copies_;
   std::vector<double> seam_stiffness_mn_per_mm_;
   std::vector<int> shared_nodes_;  // grid nodes with more than one copy
+  int exchanges_per_frame_ = 1;
   // Per pair of sub-volumes (s × count + t), the grid nodes both hold (0 on the diagonal).
   std::vector<int> shared_node_count_;
   std::vector<std::uint8_t> fixed_;
