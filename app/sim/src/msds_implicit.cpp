@@ -79,9 +79,18 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // v1 starts at v0 (the warm start), which is zero on every contact (held or released) and pinned
   // node, so a neighbour's release in the pass below does not change what a node reads.
   for_each_chunk(chunks, [&](int chunk) {
+    bool moving = false;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-    for (int i = chunk * kNodesPerChunk; i < end; ++i) cg_velocity_[i] = velocity_[i];
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      cg_velocity_[i] = velocity_[i];
+      moving = moving || !(velocity_[i].array() == 0.0).all();  // NaN counts as moving
+    }
+    partial_a_[chunk] = moving ? 1.0 : 0.0;
   });
+  // From rest, A v0 = 0 and the warm-start residual is the right-hand side: the product is
+  // skipped. A step the budget cut short leaves the tissue at rest, so under the kiosk's budget
+  // most steps start there (the product was an eighth of a starved sub-volume's frame).
+  const bool from_rest = sum_partials(partial_a_, chunks) == 0.0;
   // One pass per node: its forces, the contact release, its row of the system and the warm-start
   // residual.
   for_each_chunk(chunks, [&](int chunk) {
@@ -101,7 +110,8 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
               block_diagonal;
           inverse_diagonal_[i] = diagonal.cwiseInverse();
           rhs_[i] = mass_kg_[i] * cg_velocity_[i] + dt_s * elastic;
-          r_[i] = rhs_[i] - system_row_times(i, cg_velocity_, dt_s);
+          r_[i] = from_rest ? rhs_[i]
+                            : Eigen::Vector3d(rhs_[i] - system_row_times(i, cg_velocity_, dt_s));
           z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
           p_[i] = z_[i];
           rhs_squared += rhs_[i].squaredNorm();
