@@ -263,7 +263,7 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "time)."));
   t.add(field("msds_exchanges_per_frame", &S::msds_exchanges_per_frame, IntegerIn<int>{1, 64},
               "MSDS (both): seam exchanges per frame; must divide [msds] steps_per_frame (1: "
-              "with 2 the large soak's deep press refused more frames)."));
+              "with 2 the implicit MSDS's frames in the large soak were slower)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

@@ -195,9 +195,9 @@ struct StitchingSettings {
   int exchanges_per_frame = 2;
   // The same for the MSDS (both integrators: the explicit one's steps, the implicit one's
   // implicit steps shared among the parts); must divide MsdsSettings::steps_per_frame. One: with
-  // two the sweep-press's seams and forces came nearer one piece's, but the large soak's deep
-  // press refused 4-250 explicit frames against 24-30, and the implicit MSDS's frames there
-  // were slower (p99 18-20 → 22-24 ms; docs/accuracy.md).
+  // two the sweep-press's seams and forces came nearer one piece's, but in the large soak the
+  // implicit MSDS's frames were slower (p99 18-20 → 22-24 ms, the simulation's p50 4.45 → 4.92
+  // ms; docs/accuracy.md).
   int msds_exchanges_per_frame = 1;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
