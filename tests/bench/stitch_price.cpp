@@ -95,7 +95,7 @@ constexpr Variant kVariants[] = {
     {"selective", true, true, 1, false},
     {"all", false, true, 1, false},
     {"published-overlap", true, false, 1, false},
-    {"2-exchanges", true, true, 2, false},  // the default since 2026-11-27
+    {"2-exchanges", true, true, 2, false},  // the PCG FEM's default since 2026-11-27
     {"4-exchanges", true, true, 4, false},
     {"coarse", true, true, 1, true},
     {"coarse-4-exchanges", true, true, 4, true},

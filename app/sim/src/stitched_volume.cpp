@@ -528,12 +528,11 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
   // from its neighbours' new copies, as on one thread (0.097 mm). Only among the due: filling a
   // batch from further down the schedule would step a sub-volume that pulls less on its seams
   // instead of one that pulls more.
-  const int scheduled = due;
   const int count = sub_volume_count();
   batched_.clear();
   std::fill(placed_.begin(), placed_.end(), 0);
   int must_step = 0;
-  for (int i = 0; i < scheduled; ++i) {
+  for (int i = 0; i < due; ++i) {
     if (placed_[i]) continue;
     const std::size_t first = batched_.size();
     batched_.push_back(schedule_[i]);
@@ -546,7 +545,7 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
       const bool touched_left =
           i < touched && std::any_of(placed_.begin() + i + 1, placed_.begin() + touched,
                                      [](std::uint8_t placed) { return placed == 0; });
-      const int end = touched_left ? touched : scheduled;
+      const int end = touched_left ? touched : due;
       int best = -1;
       long best_shared = 0;
       for (int j = i + 1; j < end && !(best >= 0 && best_shared == 0); ++j) {
@@ -566,7 +565,7 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
   }
   std::copy(batched_.begin(), batched_.end(), schedule_.begin());
   // Every batch that holds a touched sub-volume steps.
-  return std::min(scheduled, (must_step + batch - 1) / batch * batch);
+  return std::min(due, (must_step + batch - 1) / batch * batch);
 }
 
 bool StitchedVolume::within_reach(const SubVolume& sub, const ProbeCollider& probe) const {

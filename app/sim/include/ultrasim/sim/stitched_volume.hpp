@@ -78,15 +78,17 @@ class StitchedVolume final : public DeformationEngine {
   // A frame of every due sub-volume; see step_within().
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // The same, in priority order: the sub-volumes the probe may touch (always), then the rest due
-  // this frame, those pulled hardest by their seams first, in batches of one per job thread while
-  // may_continue() says there is time (an empty function: no limit); may_continue is asked during
-  // the first of the exchanges_per_frame exchanges only, and the sub-volumes it admits step in
-  // every exchange (so give it 1/exchanges of the time left). Each sub-volume's own step takes
-  // it too, as one piece's does (the CG methods stop iterating, one iteration at least; the
-  // explicit MSDS stops stepping and retrying): it is asked from the job system's threads, one at a
-  // time. Stats: the sum of the sub-volumes' iterations, contact nodes and contact forces'
-  // magnitudes, the most inverted tets of one, diverged if any did, and the strongest recovery;
-  // cut_short when a due sub-volume was left for later or a stepped one's own step was cut short.
+  // this frame, those pulled hardest by their seams first, in batches of one per job thread
+  // (paired to share the fewest seam nodes) while may_continue() says there is time (an empty
+  // function: no limit); which sub-volumes step is decided in the first of the frame's exchanges,
+  // and the later ones step the same (without the time left, step_sharing(), the first exchange
+  // may take it all and the later ones run their least work). Each sub-volume's own step takes
+  // it too, in every exchange, as one piece's does (the CG methods stop iterating, one iteration at
+  // least; the explicit MSDS stops stepping and retrying): it is asked from the job system's
+  // threads, one at a time. Stats: the sum of the sub-volumes' iterations, contact nodes and
+  // contact forces' magnitudes, the most inverted tets of one, diverged if any did, and the
+  // strongest recovery; cut_short when a due sub-volume was left for later or a stepped one's own
+  // step was cut short.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   // The time left for the budgeted work, µs, from the caller's clock (the library reads none);
