@@ -183,6 +183,7 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
   if (integrator_ == MsdsIntegrator::kExplicitEuler && settings_.scale_mass_for_explicit_step) {
     scale_masses_to_time_step();
   }
+  build_speed_ceilings();
   build_adjacency();
   size_buffers();
   build_contact_clusters();
@@ -272,6 +273,29 @@ void MsdsEngine::scale_masses_to_time_step() {
     scaled += mass_kg_[i];
   }
   mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+}
+
+void MsdsEngine::build_speed_ceilings() {
+  // The global kinetic energy ceiling misses one node running away: a lattice of 20,000 springs
+  // holds far more energy than one node's six. A spring's sideways stiffness is k(1 − L/l) at
+  // length l (up to k pulled long, negative squeezed), which the rest-state stability bound
+  // leaves out: under a deep press one node can pass the explicit step's bound on its own. On the
+  // large case one reached 600 mm and 150 m/s within a few frames, its springs' damping reading
+  // 4 kN at the probe, with no tet inverted. Checked node by node, the same ceiling: no node
+  // moves faster than its own springs' energy at 100 % strain could move it, ½ m v² ≤ ½ Σ k L².
+  // An overdamped lattice relaxing from that strain moves a node at about L/β: with the masses
+  // scaled to the step, m ≈ Σ k / ω², that is ~dt / (2β) ≈ 3 % of the node's ceiling.
+  speed_ceiling_squared_.assign(rest_.size(), std::numeric_limits<double>::infinity());
+  std::vector<double> capacity_uj(rest_.size(), 0.0);
+  for (const auto& s : springs_) {
+    const double twice_energy_uj = s.stiffness_mn_per_mm * s.rest_length_mm * s.rest_length_mm;
+    capacity_uj[s.a] += twice_energy_uj;
+    capacity_uj[s.b] += twice_energy_uj;
+  }
+  for (std::size_t i = 0; i < rest_.size(); ++i) {
+    // µJ / kg = mm²/s². Masses an anchor raises later keep this (looser) ceiling.
+    if (!pinned_[i]) speed_ceiling_squared_[i] = capacity_uj[i] / mass_kg_[i];
+  }
 }
 
 void MsdsEngine::set_anchor_springs(std::span<const AnchorSpring> anchors) {
@@ -387,6 +411,7 @@ void MsdsEngine::size_buffers() {
   partial_b_.assign(chunks, 0.0);
   partial_c_.assign(chunks, 0.0);
   partial_finite_.assign(chunks, 1);
+  partial_runaway_.assign(chunks, 0);
 }
 
 void MsdsEngine::build_contact_clusters() {
@@ -587,9 +612,12 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     if (!last && (s == 0 || (s + 1) % check_every != 0)) continue;
     out.inverted_tets = count_inverted_tets();
     // A few tets folded under the probe's rim are the lattice's weakness, not a blow-up; many
-    // are garbage (as for the FEM engines: max_inverted_fraction of all tets).
+    // are garbage (as for the FEM engines: max_inverted_fraction of all tets). A node running
+    // away is too (build_speed_ceilings): like a fold, smaller steps are tried while there is
+    // time, then the frame keeps its start, at rest.
     if (static_cast<double>(out.inverted_tets) >
-        settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
+            settings_.max_inverted_fraction * static_cast<double>(tets_.size()) ||
+        a_node_outruns_its_springs()) {
       return out;
     }
     if (out_of_time) break;
@@ -606,6 +634,22 @@ int MsdsEngine::count_inverted_tets() {
   for_each_chunk(chunks,
                  [&](int chunk) { partial_a_[chunk] = tet_lattice_->count(chunk, x, y, z); });
   return static_cast<int>(sum_partials(partial_a_, chunks));
+}
+
+bool MsdsEngine::a_node_outruns_its_springs() {
+  const int n = node_count();
+  const int chunks = node_chunk_count();
+  for_each_chunk(chunks, [&](int chunk) {
+    bool runs = false;
+    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+      // `!(a <= b)` also catches a NaN speed.
+      runs = runs || !(velocity_[i].squaredNorm() <= speed_ceiling_squared_[i]);
+    }
+    partial_runaway_[chunk] = runs;
+  });
+  return std::any_of(partial_runaway_.begin(), partial_runaway_.begin() + chunks,
+                     [](std::uint8_t runs) { return runs != 0; });
 }
 
 void MsdsEngine::integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps) {

@@ -435,6 +435,48 @@ TEST(MsdsRecovery, ModeratelyUnstableStepIsDetectedWithinAFewFramesAndRecoveredB
   EXPECT_GT(engine.displacements_mm().cwiseAbs().maxCoeff(), 1.0);  // the press is shown
 }
 
+TEST(MsdsRecovery, ANodeRunningAwayAloneIsCaughtThoughTheWholeLatticesCeilingIsFarOff) {
+  // A node pulled twice its springs' length sideways: so stretched, they stiffen sideways past
+  // what the masses were scaled for (the rest lattice's bound), and the node alone oscillates
+  // with a growing swing. One node's energy is far below the ceiling of the lattice's 9,000
+  // springs and fewer tets invert than a frame may keep (a probe's rim folds a few), so only the
+  // node's own ceiling notices.
+  const Block b = make_block(30.0, {17, 9, 9});  // 2.5 mm spacing
+  const int node = node_at(b, {10, 0, 10});
+  Eigen::VectorXd pulled = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  pulled.segment<3>(3 * node) = Eigen::Vector3d(5.0, 1.5, 0.0);
+  const MsdsSettings published;  // dt 5 ms, 20 steps, masses scaled
+  const auto fastest_mm_per_s = [](const MsdsEngine& e) {
+    double fastest = 0.0;
+    for (const auto& v : e.velocities_mm_per_s()) fastest = std::max(fastest, v.norm());
+    return fastest;
+  };
+  MsdsEngine raw = make_engine(b, kExplicit, published);
+  raw.set_displacements_mm(pulled);
+  raw.integrate_unchecked(nullptr, published.time_step_s, published.steps_per_frame);
+  ASSERT_GT(fastest_mm_per_s(raw), 100.0) << "the test needs a node running away";
+  ASSERT_LT(raw.kinetic_energy_uj(), 1e-2 * raw.kinetic_energy_ceiling_uj());
+  ASSERT_LE(raw.inverted_tet_count(),
+            published.max_inverted_fraction * static_cast<double>(b.mesh.tets.size()));
+
+  MsdsEngine engine = make_engine(b, kExplicit, published);
+  engine.set_displacements_mm(pulled);
+  const auto first = engine.step(nullptr, 1.0 / 60);
+  EXPECT_TRUE(first.diverged);
+  EXPECT_EQ(first.recovery, Recovery::kSubstepped);  // half the step holds the stretched springs
+  // It relaxes as an overdamped lattice does, no faster than the strain it started with drives it
+  // (5.2 mm / β ≈ 52 mm/s), and on towards rest.
+  double previous_mm = pulled.norm();
+  for (int frame = 1; frame < 10; ++frame) {
+    EXPECT_LT(fastest_mm_per_s(engine), 52.0) << "frame " << frame;
+    const double largest_mm = engine.displacements_mm().cwiseAbs().maxCoeff();
+    EXPECT_LT(largest_mm, previous_mm) << "frame " << frame;
+    previous_mm = largest_mm;
+    engine.step(nullptr, 1.0 / 60);
+  }
+  EXPECT_LT(previous_mm, 0.1);
+}
+
 TEST(MsdsMassScaling, PublishedStepIsStableWithScaledMassesAndSettlesWhereImplicitDoes) {
   const Block b = make_block();
   MsdsSettings published;  // dt 5 ms, 20 steps, masses scaled (the defaults)

@@ -253,6 +253,7 @@ class MsdsEngine final : public DeformationEngine {
   void build_springs(const geometry::TetMesh& mesh, std::span<const Material> tet_materials);
   void build_masses(const geometry::TetMesh& mesh);
   void scale_masses_to_time_step();
+  void build_speed_ceilings();
   void build_adjacency();
   void size_buffers();
   void build_explicit_kernel();
@@ -264,7 +265,8 @@ class MsdsEngine final : public DeformationEngine {
   const StepBudget* budget_ = nullptr;
   bool cut_short_ = false;
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
-  int count_inverted_tets();  // inverted_tet_count() on the job system
+  int count_inverted_tets();          // inverted_tet_count() on the job system
+  bool a_node_outruns_its_springs();  // past speed_ceiling_squared_, on the job system
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
   // new_probe: the probe may differ from the last step's (the first step of a frame or a run):
   // query every node for contact, not only those that may have reached it.
@@ -357,6 +359,9 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<double> padded_mass_kg_;       // kNodePadding past the last node (zero there)
   std::vector<double> inverse_mass_per_kg_;  // likewise; 0 on pinned nodes
   double kinetic_energy_ceiling_uj_ = 0.0;
+  // Each node's: the square of the speed at which its kinetic energy equals its springs' energy
+  // at 100 % strain, mm²/s² (infinite on pinned nodes).
+  std::vector<double> speed_ceiling_squared_;
   double mass_scale_ = 1.0;
   // Mass scaling's inputs, kept for anchored nodes: physical masses, each node's Gershgorin row
   // sum of its springs (mN/mm), the largest ω² the step is stable for (empty / 0 without scaling).
@@ -418,7 +423,7 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<ImplicitSpringBlock> spring_block_;
   std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
   std::vector<double> partial_a_, partial_b_, partial_c_;
-  std::vector<std::uint8_t> partial_finite_;
+  std::vector<std::uint8_t> partial_finite_, partial_runaway_;
 };
 
 }  // namespace ultrasim::sim
