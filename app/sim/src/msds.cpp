@@ -281,10 +281,11 @@ void MsdsEngine::build_speed_ceilings() {
   // length l (up to k pulled long, negative squeezed), which the rest-state stability bound
   // leaves out: under a deep press one node can pass the explicit step's bound on its own. On the
   // large case one reached 600 mm and 150 m/s within a few frames, its springs' damping reading
-  // 4 kN at the probe, with no tet inverted. Checked node by node, the same ceiling: no node
-  // moves faster than its own springs' energy at 100 % strain could move it, ½ m v² ≤ ½ Σ k L².
-  // An overdamped lattice relaxing from that strain moves a node at about L/β: with the masses
-  // scaled to the step, m ≈ Σ k / ω², that is ~dt / (2β) ≈ 3 % of the node's ceiling.
+  // 4 kN at the probe: one node inverts fewer tets than the 0.5 % a frame may keep. Checked node
+  // by node, the same ceiling: no node moves faster than its own springs' energy at 100 % strain
+  // could move it, ½ m v² ≤ ½ Σ k L². An overdamped lattice relaxing from that strain moves a
+  // node at about L/β: with the masses scaled to the step, m ≈ Σ k / ω², that is ~dt / (2β) ≈
+  // 3 % of the node's ceiling.
   speed_ceiling_squared_.assign(rest_.size(), std::numeric_limits<double>::infinity());
   std::vector<double> capacity_uj(rest_.size(), 0.0);
   for (const auto& s : springs_) {
