@@ -84,8 +84,9 @@ TEST_F(ShortSoak, RecoveryEventsAccountForEveryRecoveredFrame) {
   ASSERT_EQ(json_number(report_, "dropped", log), 0);
   std::map<std::string, double> frames;
   const std::regex event(
-      "\"kind\": \"([a-z-]+)\", \"first_frame\": ([0-9]+), \"length_frames\": ([0-9]+), "
-      "\"time_s\": [-0-9.eE+]+, \"case\": \"[^\"]+\", \"method\": \"[a-z-]+\"");
+      "\"kind\": \"([a-z-]+)\", \"cause\": \"[a-z-]+\", \"first_frame\": ([0-9]+), "
+      "\"length_frames\": ([0-9]+), \"time_s\": [-0-9.eE+]+, \"case\": \"[^\"]+\", "
+      "\"method\": \"[a-z-]+\"");
   for (auto it = std::sregex_iterator(report_.begin(), report_.end(), event);
        it != std::sregex_iterator(); ++it) {
     frames[(*it)[1]] += std::stod((*it)[3]);
@@ -93,6 +94,18 @@ TEST_F(ShortSoak, RecoveryEventsAccountForEveryRecoveredFrame) {
   EXPECT_EQ(frames["substepped"], json_number(report_, "substepped"));
   EXPECT_EQ(frames["kept-last-good"], json_number(report_, "kept_last_good"));
   EXPECT_EQ(frames["reset"], json_number(report_, "reset"));
+}
+
+// Every frame a method's checks failed says what they found (report.json `sim`
+// `diverged_by_cause`): the causes add up to the diverged frames.
+TEST_F(ShortSoak, EveryDivergedFrameHasACause) {
+  const std::size_t causes = report_.find("\"diverged_by_cause\":");
+  ASSERT_NE(causes, std::string::npos);
+  double sum = 0.0;
+  for (const char* cause : {"non-finite", "energy", "runaway", "inverted", "seam-torn"}) {
+    sum += json_number(report_, cause, causes);
+  }
+  EXPECT_EQ(sum, json_number(report_, "diverged_frames"));
 }
 
 // Once a second of frames (the last second partial), the strongest press over that second: the

@@ -457,9 +457,10 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.probe_held_frames += outcome.probe_held;
     report.cut_short_frames += outcome.sim.cut_short;
     report.recoveries[static_cast<std::size_t>(outcome.sim.recovery)] += 1;
-    report.recovery_events.record(frame, static_cast<double>(now) * 1e-6,
-                                  tissues[case_index].settings.name, method_key,
-                                  outcome.sim.recovery, outcome.sim.contact_force_n);
+    if (outcome.sim.diverged) report.causes[static_cast<std::size_t>(outcome.sim.cause)] += 1;
+    report.recovery_events.record(
+        frame, static_cast<double>(now) * 1e-6, tissues[case_index].settings.name, method_key,
+        outcome.sim.recovery, outcome.sim.contact_force_n, outcome.sim.cause);
     report.max_inverted_tets = std::max(report.max_inverted_tets, outcome.sim.inverted_tets);
     report.max_contact_force_n = std::max(report.max_contact_force_n, outcome.sim.contact_force_n);
     if (outcome.stitch) {

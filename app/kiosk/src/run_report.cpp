@@ -65,13 +65,20 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"probe_held_frames\": " << r.probe_held_frames
       << ", \"cut_short_frames\": " << r.cut_short_frames << ", \"substepped\": " << r.recoveries[1]
       << ", \"reset\": " << r.recoveries[2] << ", \"kept_last_good\": " << r.recoveries[3]
-      << ", \"max_inverted_tets\": " << r.max_inverted_tets << "},\n"
+      << ", \"max_inverted_tets\": " << r.max_inverted_tets << ", \"diverged_by_cause\": {";
+  for (int c = 1; c < sim::kDivergenceCauseCount; ++c) {
+    out << (c > 1 ? ", " : "")
+        << quoted(std::string(sim::cause_key(static_cast<sim::DivergenceCause>(c)))) << ": "
+        << r.causes[static_cast<std::size_t>(c)];
+  }
+  out << "}},\n"
       << "  \"recovery_events\": {\"dropped\": " << r.recovery_events.dropped()
       << ", \"events\": [";
   const auto& events = r.recovery_events.events();
   for (std::size_t i = 0; i < events.size(); ++i) {
     const RecoveryEvent& e = events[i];
     out << (i ? ",\n" : "\n") << "    {\"kind\": " << quoted(std::string(sim::recovery_key(e.kind)))
+        << ", \"cause\": " << quoted(std::string(sim::cause_key(e.cause)))
         << ", \"first_frame\": " << e.first_frame << ", \"length_frames\": " << e.frames
         << ", \"time_s\": " << e.time_s << ", \"case\": " << quoted(e.case_name)
         << ", \"method\": " << quoted(e.method)

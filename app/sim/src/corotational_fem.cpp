@@ -677,6 +677,7 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
   const int allowed = std::max(inversion_limit(), count_inverted(u_before_step_).with_free_node);
   if (finite && inverted.with_free_node <= allowed) return;
   stats.diverged = true;
+  stats.cause = finite ? DivergenceCause::kInverted : DivergenceCause::kNonFinite;
   stats.recovery = Recovery::kSubstepped;
   if (finite) {
     // Cut the frame's update short: the tissue lags the probe for a frame instead of folding.
@@ -759,12 +760,14 @@ CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_m
   if (!u_.allFinite()) {
     u_ = u_before_step_;  // the last finite iterate
     stats.diverged = true;
+    stats.cause = DivergenceCause::kNonFinite;
     stats.recovery = Recovery::kSubstepped;
     result.converged = false;
   } else {
     const InversionCount inverted = count_inverted(u_);
     stats.inverted_tets = inverted.total;
     stats.diverged = inverted.with_free_node > inversion_limit();  // as step() would judge it
+    if (stats.diverged) stats.cause = DivergenceCause::kInverted;
     stats.contact_force_n = measure_contact_forces();
   }
   update_deformed();

@@ -610,6 +610,7 @@ EngineStepStats ExactFem::solve_probe(const ProbeCollider* probe) {
                                    static_cast<double>(std::max<std::size_t>(1, tets_.size()));
   if (inverted_fraction > settings_.max_inverted_fraction || !u_.allFinite()) {
     out.diverged = true;
+    out.cause = u_.allFinite() ? DivergenceCause::kInverted : DivergenceCause::kNonFinite;
     out.recovery = Recovery::kKeptLastGood;
     u_ = last_good_u_;
     update_deformed();

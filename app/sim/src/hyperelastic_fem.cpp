@@ -480,6 +480,7 @@ EngineStepStats HyperelasticFem::step(const ProbeCollider* probe, double /*frame
   if (!finite) {
     x_ = last_good_;
     stats.diverged = true;
+    stats.cause = DivergenceCause::kNonFinite;
     stats.recovery = Recovery::kKeptLastGood;
     assemble(false);
   }

@@ -373,11 +373,13 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
   out.inverted_tets = geometry::count_inverted_tets(tets_, deformed_);
   if (fem.reset_after_divergence) {
     out.diverged = true;
+    out.cause = DivergenceCause::kNonFinite;
     out.recovery = Recovery::kReset;
   } else if (static_cast<double>(out.inverted_tets) >
              settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
     // Pressed through the tissue: a linear model's answer there is garbage. Show the last good.
     out.diverged = true;
+    out.cause = DivergenceCause::kInverted;
     out.recovery = Recovery::kKeptLastGood;
     u_ = last_good_u_;
     std::fill(in_contact_.begin(), in_contact_.end(), 0);

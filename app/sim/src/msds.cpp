@@ -340,6 +340,58 @@ void MsdsEngine::rescale_anchored_mass(int node, double anchor_stiffness_mn_per_
   mass_scaled_for_anchor_mn_per_mm_[node] = anchor_stiffness_mn_per_mm;
 }
 
+void MsdsEngine::weigh_runaway_nodes() {
+  // A node runs away when its springs, pulled long, stiffen it sideways past the rest stiffness
+  // its mass was scaled for. Kept at the frame's start it is still pulled long there, and would
+  // run away again in every frame short of time for smaller steps (345 frames refused in a row
+  // in the large soak). So, as explicit FE codes scale the mass of the elements that limit the
+  // step, its mass is scaled again for its springs' stiffness where the frame starts (the
+  // statics do not change; that node follows more slowly). Without mass scaling there is no
+  // mass to spare: smaller steps only.
+  if (!(stable_omega_squared_ > 0.0)) return;
+  bool weighed = false;
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i] || velocity_[i].squaredNorm() <= speed_ceiling_squared_[i]) continue;
+    const double row = stretched_gershgorin_row_mn_per_mm(i);
+    if (!(row > gershgorin_row_mn_per_mm_[i])) continue;
+    gershgorin_row_mn_per_mm_[i] = row;
+    rescale_anchored_mass(i, anchor_stiffness_mn_per_mm_[i]);
+    weighed = true;
+  }
+  if (!weighed) return;
+  double physical = 0.0, scaled = 0.0;
+  for (int i = 0; i < node_count(); ++i) {
+    if (pinned_[i]) continue;
+    physical += physical_mass_kg_[i];
+    scaled += mass_kg_[i];
+  }
+  mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+}
+
+double MsdsEngine::stretched_gershgorin_row_mn_per_mm(int node) const {
+  // As gershgorin_row_sums, with each spring's stiffness at its length l at the frame's start:
+  // k [n nᵀ + g (I − n nᵀ)], g = 1 − L/l (kept within ±1: a spring squeezed below half its
+  // length buckles, which no mass steadies).
+  Eigen::Matrix3d diagonal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d off_row_sums = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d x = position_frame_start_[node];
+  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
+    const MsdsSpring& spring = springs_[adjacency_spring_[e]];
+    const int other = adjacency_other_[e];
+    const Eigen::Vector3d d = position_frame_start_[other] - x;
+    const double length = d.norm();
+    if (!(length > 0.0)) continue;
+    const Eigen::Vector3d n = d / length;
+    const double g = std::clamp(1.0 - spring.rest_length_mm / length, -1.0, 1.0);
+    const Eigen::Matrix3d block =
+        spring.stiffness_mn_per_mm *
+        (n * n.transpose() + g * (Eigen::Matrix3d::Identity() - n * n.transpose()));
+    diagonal += block;
+    if (!pinned_[other]) off_row_sums += block.cwiseAbs().rowwise().sum();
+  }
+  return (diagonal.cwiseAbs().rowwise().sum() + off_row_sums).maxCoeff();
+}
+
 void MsdsEngine::build_adjacency() {
   const int n = node_count();
   adjacency_begin_.assign(n + 1, 0);
@@ -541,7 +593,9 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
   AttemptResult attempt = run_attempt(probe, dt, steps);
   if (!attempt.accepted) {
     stats.diverged = true;
+    stats.cause = attempt.cause;  // why the frame was re-run, whatever the later tries found
     stats.inverted_tets = attempt.inverted_tets;
+    if (attempt.cause == DivergenceCause::kRunaway) weigh_runaway_nodes();
     // Under a budget, smaller steps are tried only while there is time (each try doubles the
     // steps): past it, the frame keeps its start, as for a refused press.
     bool out_of_time = false;
@@ -597,6 +651,8 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     // `!(a <= b)` also catches a NaN energy.
     if (!r.finite || !(r.kinetic_energy_uj <= kinetic_energy_ceiling_uj_)) {
       out.blew_up = true;
+      out.cause = r.finite && std::isfinite(r.kinetic_energy_uj) ? DivergenceCause::kEnergy
+                                                                 : DivergenceCause::kNonFinite;
       return out;
     }
     // Under a budget the explicit integrator stops stepping when the time is spent: the frame
@@ -617,8 +673,12 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     // away is too (build_speed_ceilings): like a fold, smaller steps are tried while there is
     // time, then the frame keeps its start, at rest.
     if (static_cast<double>(out.inverted_tets) >
-            settings_.max_inverted_fraction * static_cast<double>(tets_.size()) ||
-        a_node_outruns_its_springs()) {
+        settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
+      out.cause = DivergenceCause::kInverted;
+      return out;
+    }
+    if (a_node_outruns_its_springs()) {  // a runaway the tets' count has not seen (yet)
+      out.cause = DivergenceCause::kRunaway;
       return out;
     }
     if (out_of_time) break;

@@ -16,6 +16,24 @@ std::string_view recovery_key(Recovery recovery) {
   return "unknown";
 }
 
+std::string_view cause_key(DivergenceCause cause) {
+  switch (cause) {
+    case DivergenceCause::kNone:
+      return "none";
+    case DivergenceCause::kNonFinite:
+      return "non-finite";
+    case DivergenceCause::kEnergy:
+      return "energy";
+    case DivergenceCause::kRunaway:
+      return "runaway";
+    case DivergenceCause::kInverted:
+      return "inverted";
+    case DivergenceCause::kSeamTorn:
+      return "seam-torn";
+  }
+  return "unknown";
+}
+
 Recovery worse_recovery(Recovery a, Recovery b) {
   const auto severity = [](Recovery r) {
     switch (r) {

@@ -420,7 +420,8 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   if (shares && batch_tail_us >= 0) batch_tail_us_ = batch_tail_us;
   const std::int64_t left_after_steps_us = shares ? time_left_us() : 0;
   const std::span<const int> stepped = std::span(schedule_).first(next);
-  const bool refused = refuses_frame(stepped);
+  DivergenceCause refusal = DivergenceCause::kNone;
+  const bool refused = refuses_frame(stepped, refusal);
   if (refused) {
     revert_frame(stepped);
   } else {
@@ -439,6 +440,11 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     out.inverted_tets = std::max(out.inverted_tets, s.inverted_tets);
     out.diverged = out.diverged || s.diverged;
     out.cut_short = out.cut_short || s.cut_short;
+    // The cause behind the worst recovery (the first sub-volume's, of equals).
+    if (s.diverged && (out.cause == DivergenceCause::kNone ||
+                       worse_recovery(s.recovery, out.recovery) != out.recovery)) {
+      out.cause = s.cause;
+    }
     out.recovery = worse_recovery(out.recovery, s.recovery);
   }
   // Deferred sub-volumes, or a stepped one's solve stopped by the budget.
@@ -449,6 +455,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     // because the budget ran out before smaller steps were tried: as for one piece, no verdict,
     // and the next frame tries again.
     out.diverged = true;
+    out.cause = refusal;
     out.recovery = Recovery::kKeptLastGood;
     out.cut_short = std::ranges::any_of(stepped, [this](int s) {
       const EngineStepStats& stats = subs_[s].last_stats;
@@ -644,6 +651,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       f.contact_nodes = s.contact_nodes;
       f.contact_force_n = s.contact_force_n;
       f.inverted_tets = std::max(f.inverted_tets, s.inverted_tets);
+      if (!f.diverged) f.cause = s.cause;  // the frame's first
       f.diverged = f.diverged || s.diverged;
       f.recovery = worse_recovery(f.recovery, s.recovery);
     }
@@ -675,16 +683,25 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
   }
 }
 
-bool StitchedVolume::refuses_frame(std::span<const int> stepped) {
+bool StitchedVolume::refuses_frame(std::span<const int> stepped, DivergenceCause& cause) {
   int inverted = 0;
   for (int s : stepped) {
     const EngineStepStats& stats = subs_[s].last_stats;
     if (stats.recovery == Recovery::kReset || stats.recovery == Recovery::kKeptLastGood) {
+      cause = stats.cause;
       return true;
     }
     inverted += stats.inverted_tets;
   }
-  return inverted > max_inverted_tets_ || tears_a_seam();
+  if (inverted > max_inverted_tets_) {
+    cause = DivergenceCause::kInverted;
+    return true;
+  }
+  if (tears_a_seam()) {
+    cause = DivergenceCause::kSeamTorn;
+    return true;
+  }
+  return false;
 }
 
 bool StitchedVolume::tears_a_seam() {

@@ -48,6 +48,22 @@ TEST(RecoveryEvents, AnotherKindCaseOrMethodOrAGapStartsANewEvent) {
   EXPECT_EQ(sim::recovery_key(Recovery::kReset), "reset");
 }
 
+TEST(RecoveryEvents, AnotherCauseStartsANewEventAndEachKeepsItsCause) {
+  RecoveryEvents log;
+  using sim::DivergenceCause;
+  log.record(1, 0.0, "arm", "msds-explicit", Recovery::kKeptLastGood, 1.0,
+             DivergenceCause::kRunaway);
+  log.record(2, 0.0, "arm", "msds-explicit", Recovery::kKeptLastGood, 1.0,
+             DivergenceCause::kInverted);
+  log.record(3, 0.0, "arm", "msds-explicit", Recovery::kKeptLastGood, 1.0,
+             DivergenceCause::kInverted);
+  ASSERT_EQ(log.events().size(), 2u);
+  EXPECT_EQ(log.events()[0].cause, DivergenceCause::kRunaway);
+  EXPECT_EQ(log.events()[0].frames, 1);
+  EXPECT_EQ(log.events()[1].cause, DivergenceCause::kInverted);
+  EXPECT_EQ(log.events()[1].frames, 2);
+}
+
 TEST(RecoveryEvents, PastTheCapEventsAreCountedNotKept) {
   RecoveryEvents log;
   const auto n = static_cast<std::int64_t>(RecoveryEvents::kMaxEvents);

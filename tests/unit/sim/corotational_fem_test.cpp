@@ -476,6 +476,7 @@ TEST(CorotationalFem, InvertingFrameOverTheLimitIsBacktrackedReportedAndLeavesNo
   const auto [cut, stats] = press_through((folds - 0.5) / tets);  // a limit of folds − 1
   EXPECT_EQ(stats.inverted_tets, folds) << "the rejected result's inversions are reported";
   EXPECT_TRUE(stats.diverged);
+  EXPECT_EQ(stats.cause, DivergenceCause::kInverted);
   EXPECT_EQ(stats.recovery, Recovery::kSubstepped);
   EXPECT_TRUE(cut->displacements_mm().allFinite());
   EXPECT_LE(cut->inverted_tet_count(), folds - 1);

@@ -183,6 +183,7 @@ TEST(ExactFemContact, ProbeThroughTheTissueKeepsTheLastGoodShapeAndSaysSo) {
   EXPECT_TRUE(stats.diverged);
   EXPECT_LE(depth, 20.0);  // at the latest when the face reaches the fixed base
   EXPECT_GT(stats.inverted_tets, 0.005 * static_cast<double>(b.mesh.tets.size()));
+  EXPECT_EQ(stats.cause, DivergenceCause::kInverted);
   EXPECT_EQ(stats.recovery, Recovery::kKeptLastGood);
   EXPECT_EQ(fem.displacements_mm(), good);
   // Lifting the probe returns the tissue to rest.

@@ -300,6 +300,27 @@ TEST(LinearFem, TissueFollowsASlowlyLiftingProbe) {
   EXPECT_EQ(lifted.contact_nodes, 0);
 }
 
+// Pushed through the 20 mm block, the linear model's answer folds tets: past
+// max_inverted_fraction the frame is refused, the last good shape kept, and the stats say why.
+TEST(LinearFem, APressThroughTheTissueKeepsTheLastGoodShapeAndSaysTetsInverted) {
+  Block b = make_block();
+  LinearFem fem(b.mesh, b.materials, b.fixed, pcg_settings(50, 1e-10));
+  EngineStepStats stats;
+  Eigen::VectorXd good;
+  double depth_mm = 0.0;
+  do {
+    good = fem.displacements_mm();
+    depth_mm += 1.0;
+    const ProbeCollider probe =
+        ProbeCollider::sphere(SphereCollider::behind_face({0, 0, depth_mm}, {0, 0, 1}, 15.0));
+    stats = fem.step(&probe, 1.0 / 60);
+  } while (!stats.diverged && depth_mm < 30.0);
+  ASSERT_TRUE(stats.diverged) << "never refused: the test would mean nothing";
+  EXPECT_EQ(stats.cause, DivergenceCause::kInverted);
+  EXPECT_EQ(stats.recovery, Recovery::kKeptLastGood);
+  EXPECT_EQ(fem.displacements_mm(), good);
+}
+
 TEST(LinearFem, StepDoesNotProduceNonFiniteValues) {
   Block b = make_block();
   LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{});

@@ -401,6 +401,8 @@ TEST(MsdsRecovery, PublishedStepFarPastTheBoundIsDetectedAndResetToRest) {
   const ProbeCollider probe = press(2.0);
   const auto stats = engine.step(&probe, 1.0 / 30);
   EXPECT_TRUE(stats.diverged);
+  EXPECT_TRUE(stats.cause == DivergenceCause::kEnergy || stats.cause == DivergenceCause::kNonFinite)
+      << cause_key(stats.cause);
   EXPECT_EQ(stats.recovery, Recovery::kReset);
   EXPECT_TRUE(engine.displacements_mm().allFinite());
   EXPECT_EQ(engine.displacements_mm().cwiseAbs().maxCoeff(), 0.0);
@@ -463,18 +465,39 @@ TEST(MsdsRecovery, ANodeRunningAwayAloneIsCaughtThoughTheWholeLatticesCeilingIsF
   engine.set_displacements_mm(pulled);
   const auto first = engine.step(nullptr, 1.0 / 60);
   EXPECT_TRUE(first.diverged);
+  EXPECT_EQ(first.cause, DivergenceCause::kRunaway);
   EXPECT_EQ(first.recovery, Recovery::kSubstepped);  // half the step holds the stretched springs
   // It relaxes as an overdamped lattice does, no faster than the strain it started with drives it
-  // (5.2 mm / β ≈ 52 mm/s), and on towards rest.
+  // (5.2 mm / β ≈ 52 mm/s), and on towards rest (the node, heavier since, swings a little).
   double previous_mm = pulled.norm();
   for (int frame = 1; frame < 10; ++frame) {
     EXPECT_LT(fastest_mm_per_s(engine), 52.0) << "frame " << frame;
     const double largest_mm = engine.displacements_mm().cwiseAbs().maxCoeff();
-    EXPECT_LT(largest_mm, previous_mm) << "frame " << frame;
+    EXPECT_LT(largest_mm, 1.05 * previous_mm) << "frame " << frame;
     previous_mm = largest_mm;
     engine.step(nullptr, 1.0 / 60);
   }
   EXPECT_LT(previous_mm, 0.1);
+
+  // With no time for smaller steps (each frame cut short after its first check, 4 steps) the
+  // frame that catches it keeps its start, where the node is still pulled long: pulled half as
+  // far again, it ran away from there within the 4 steps in each of the 40 frames. Its mass is
+  // now scaled for its stretched springs, so the frames after relax it instead.
+  MsdsEngine starved = make_engine(b, kExplicit, published);
+  const Eigen::VectorXd further = 1.5 * pulled;
+  starved.set_displacements_mm(further);
+  const double mass_scale_before = starved.mass_scale();
+  const StepBudget no_time = [] { return false; };
+  int refused = 0;
+  for (int frame = 0; frame < 40; ++frame) {
+    const auto stats = starved.step_within(nullptr, 1.0 / 60, no_time);
+    EXPECT_TRUE(stats.cut_short) << "frame " << frame;
+    refused += stats.recovery == Recovery::kKeptLastGood;
+    EXPECT_LT(fastest_mm_per_s(starved), 150.0) << "frame " << frame;
+  }
+  EXPECT_EQ(refused, 1);
+  EXPECT_GT(starved.mass_scale(), mass_scale_before);
+  EXPECT_LT(starved.displacements_mm().cwiseAbs().maxCoeff(), 0.5);
 }
 
 TEST(MsdsMassScaling, PublishedStepIsStableWithScaledMassesAndSettlesWhereImplicitDoes) {
@@ -510,6 +533,7 @@ TEST(MsdsRecovery, ProbeDeeperThanTheTissueReportsInvertedTetsAndNeverNaN) {
     for (int frame = 0; frame < 3; ++frame) {
       const auto stats = engine.step(&through, 1.0 / 30);
       EXPECT_TRUE(stats.diverged) << engine.name();
+      EXPECT_EQ(stats.cause, DivergenceCause::kInverted) << engine.name();
       EXPECT_GT(stats.inverted_tets, 0) << engine.name();
       // Smaller steps cannot unfold them: the last good shape (rest, here) is kept.
       EXPECT_EQ(stats.recovery, Recovery::kKeptLastGood) << engine.name();

@@ -15,6 +15,16 @@ TEST(Recovery, KeysAreTheReportsNames) {
   EXPECT_EQ(recovery_key(Recovery::kKeptLastGood), "kept-last-good");
 }
 
+TEST(Recovery, CausesHaveTheReportsNames) {
+  EXPECT_EQ(cause_key(DivergenceCause::kNone), "none");
+  EXPECT_EQ(cause_key(DivergenceCause::kNonFinite), "non-finite");
+  EXPECT_EQ(cause_key(DivergenceCause::kEnergy), "energy");
+  EXPECT_EQ(cause_key(DivergenceCause::kRunaway), "runaway");
+  EXPECT_EQ(cause_key(DivergenceCause::kInverted), "inverted");
+  EXPECT_EQ(cause_key(DivergenceCause::kSeamTorn), "seam-torn");
+  EXPECT_EQ(static_cast<int>(DivergenceCause::kSeamTorn) + 1, kDivergenceCauseCount);
+}
+
 TEST(Recovery, WorseOrdersNoneSubsteppedKeptLastGoodReset) {
   const Recovery order[] = {Recovery::kNone, Recovery::kSubstepped, Recovery::kKeptLastGood,
                             Recovery::kReset};

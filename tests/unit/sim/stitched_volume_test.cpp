@@ -843,6 +843,9 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
       if (s.recovery == Recovery::kKeptLastGood) {
         ++refused;
         EXPECT_TRUE(s.diverged);
+        // The sub-volume's verdict: its tets folded (or a node ran away), never the seam.
+        EXPECT_TRUE(s.cause == DivergenceCause::kInverted || s.cause == DivergenceCause::kRunaway)
+            << cause_key(s.cause);
         EXPECT_EQ(s.cut_short, out_of_time) << "frame " << f;
         EXPECT_EQ(stitched.displacements_mm(), before) << "frame " << f;
       }
@@ -876,6 +879,7 @@ TEST(StitchedVolume, AFrameThatOpensASeamPastTheBoundIsRefused) {
       if (s.recovery == Recovery::kKeptLastGood) {
         ++run.refused;
         EXPECT_TRUE(s.diverged);
+        EXPECT_EQ(s.cause, DivergenceCause::kSeamTorn);
         // Back where the frame found it, to the rounding of x − u = rest.
         EXPECT_LT((stitched.displacements_mm() - before).cwiseAbs().maxCoeff(), 1e-12)
             << "frame " << f;

@@ -16,6 +16,7 @@ namespace ultrasim::kiosk {
 
 struct RecoveryEvent {
   sim::Recovery kind = sim::Recovery::kNone;
+  sim::DivergenceCause cause = sim::DivergenceCause::kNone;  // what the method's checks found
   std::int64_t first_frame = 0;
   std::int64_t frames = 0;
   double time_s = 0.0;  // the first frame's time on the run's clock
@@ -31,9 +32,10 @@ class RecoveryEvents {
   static constexpr std::size_t kMaxEvents = 256;
 
   // One frame's outcome. Frames without a recovery end the current event; a frame continuing the
-  // last event (the next frame, the same kind, case and method) extends it.
+  // last event (the next frame, the same kind, cause, case and method) extends it.
   void record(std::int64_t frame, double time_s, std::string_view case_name,
-              std::string_view method, sim::Recovery recovery, double contact_force_n);
+              std::string_view method, sim::Recovery recovery, double contact_force_n,
+              sim::DivergenceCause cause = sim::DivergenceCause::kNone);
 
   const std::vector<RecoveryEvent>& events() const { return events_; }
   std::int64_t dropped() const { return dropped_; }  // events past kMaxEvents
@@ -44,6 +46,7 @@ class RecoveryEvents {
   // The last frame with a recovery and what it was, kept past kMaxEvents to count events.
   std::int64_t last_frame_ = -2;
   sim::Recovery last_kind_ = sim::Recovery::kNone;
+  sim::DivergenceCause last_cause_ = sim::DivergenceCause::kNone;
   std::string last_case_, last_method_;
 };
 

@@ -87,7 +87,9 @@ struct RunReport {
   std::int64_t probe_held_frames = 0;        // a refused press held where the method last took it
   std::int64_t cut_short_frames = 0;         // the frame's budget stopped the method's work early
   std::array<std::int64_t, 4> recoveries{};  // frames per sim::Recovery value
-  RecoveryEvents recovery_events;            // when, on which case and method, how hard pressed
+  // Diverged frames per sim::DivergenceCause value: what the checks found.
+  std::array<std::int64_t, sim::kDivergenceCauseCount> causes{};
+  RecoveryEvents recovery_events;  // when, on which case and method, how hard pressed
   int max_inverted_tets = 0;
   double max_contact_force_n = 0.0;
   StitchSummary stitching;

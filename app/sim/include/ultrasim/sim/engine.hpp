@@ -22,8 +22,21 @@ enum class Recovery {
   kKeptLastGood,  // the frame's answer was rejected; the last good shape is shown again
 };
 
+// What a frame's checks found (EngineStepStats::diverged); the recovery is what was done about it.
+enum class DivergenceCause {
+  kNone,
+  kNonFinite,  // a NaN or infinite displacement or velocity
+  kEnergy,     // kinetic energy past the whole spring lattice's ceiling (an integrator blowing up)
+  kRunaway,    // one node faster than its own springs could move it (MsdsEngine)
+  kInverted,   // more tets inverted than the method's max_inverted_fraction
+  kSeamTorn,   // a stitched seam opened past StitchingSettings::refuse_gap_mm
+};
+inline constexpr int kDivergenceCauseCount = 6;
+
 // How a recovery is named in reports and tables: "none", "substepped", "reset", "kept-last-good".
 std::string_view recovery_key(Recovery recovery);
+// Likewise: "none", "non-finite", "energy", "runaway", "inverted", "seam-torn".
+std::string_view cause_key(DivergenceCause cause);
 // The worse of two recoveries: a reset is worse than keeping the last good shape, which is worse
 // than substepping, which is worse than none.
 Recovery worse_recovery(Recovery a, Recovery b);
@@ -36,6 +49,7 @@ struct EngineStepStats {
   double contact_force_n = 0.0;    // |total force the probe exerts on the tissue|, newtons
   int inverted_tets = 0;           // tets with non-positive deformed volume after the step
   bool diverged = false;           // NaN, energy growth or inversion was detected this frame
+  DivergenceCause cause = DivergenceCause::kNone;  // what was detected (the first, if several)
   Recovery recovery = Recovery::kNone;
   // step_within()'s budget ran out before the frame's work was done: the shape shown is less
   // converged (CG stopped early, sub-volumes left for later, a refused frame not retried) or, for

@@ -232,6 +232,7 @@ class MsdsEngine final : public DeformationEngine {
   struct AttemptResult {
     bool accepted = false;
     bool blew_up = false;  // non-finite or kinetic energy past the ceiling (not just inversion)
+    DivergenceCause cause = DivergenceCause::kNone;  // why it was not accepted
     int inverted_tets = 0;
     int iterations = 0;  // integration steps (explicit) or CG iterations (implicit)
     double relative_residual = 0.0;
@@ -267,6 +268,8 @@ class MsdsEngine final : public DeformationEngine {
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
   int count_inverted_tets();          // inverted_tet_count() on the job system
   bool a_node_outruns_its_springs();  // past speed_ceiling_squared_, on the job system
+  void weigh_runaway_nodes();         // mass scaled again for those nodes' stretched springs
+  double stretched_gershgorin_row_mn_per_mm(int node) const;
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
   // new_probe: the probe may differ from the last step's (the first step of a frame or a run):
   // query every node for contact, not only those that may have reached it.

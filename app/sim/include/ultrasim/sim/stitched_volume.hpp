@@ -204,8 +204,8 @@ class StitchedVolume final : public DeformationEngine {
   // pressed on: the seam tears, its springs pull the copies apart harder each frame, and the
   // explicit MSDS blew up (the soak with the large case: 13 resets in 60 s, a 2.2 m gap).
   // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
-  // than it was): a torn seam.
-  bool refuses_frame(std::span<const int> stepped);
+  // than it was): a torn seam. `cause` says which.
+  bool refuses_frame(std::span<const int> stepped, DivergenceCause& cause);
   // Whether a seam of a stepped sub-volume is now wider than refuse_gap_mm and than last frame.
   bool tears_a_seam();
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
