@@ -322,6 +322,10 @@ void MsdsEngine::set_anchor_springs(std::span<const AnchorSpring> anchors) {
     changed = true;
   }
   if (!changed) return;
+  recount_mass_scale();
+}
+
+void MsdsEngine::recount_mass_scale() {
   double physical = 0.0, scaled = 0.0;
   for (int i = 0; i < node_count(); ++i) {
     if (pinned_[i]) continue;
@@ -359,13 +363,7 @@ void MsdsEngine::weigh_runaway_nodes() {
     weighed = true;
   }
   if (!weighed) return;
-  double physical = 0.0, scaled = 0.0;
-  for (int i = 0; i < node_count(); ++i) {
-    if (pinned_[i]) continue;
-    physical += physical_mass_kg_[i];
-    scaled += mass_kg_[i];
-  }
-  mass_scale_ = physical > 0.0 ? scaled / physical : 1.0;
+  recount_mass_scale();
 }
 
 double MsdsEngine::stretched_gershgorin_row_mn_per_mm(int node) const {
@@ -671,7 +669,7 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     // A few tets folded under the probe's rim are the lattice's weakness, not a blow-up; many
     // are garbage (as for the FEM engines: max_inverted_fraction of all tets). A node running
     // away is too (build_speed_ceilings): like a fold, smaller steps are tried while there is
-    // time, then the frame keeps its start, at rest.
+    // time, then the frame keeps its start, at rest (and the node is weighed: run_frame).
     if (static_cast<double>(out.inverted_tets) >
         settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
       out.cause = DivergenceCause::kInverted;

@@ -269,6 +269,7 @@ class MsdsEngine final : public DeformationEngine {
   int count_inverted_tets();          // inverted_tet_count() on the job system
   bool a_node_outruns_its_springs();  // past speed_ceiling_squared_, on the job system
   void weigh_runaway_nodes();         // mass scaled again for those nodes' stretched springs
+  void recount_mass_scale();
   double stretched_gershgorin_row_mn_per_mm(int node) const;
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
   // new_probe: the probe may differ from the last step's (the first step of a frame or a run):
