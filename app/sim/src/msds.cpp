@@ -284,8 +284,8 @@ void MsdsEngine::build_speed_ceilings() {
   // 4 kN at the probe: one node inverts fewer tets than the 0.5 % a frame may keep. Checked node
   // by node, the same ceiling: no node moves faster than its own springs' energy at 100 % strain
   // could move it, ½ m v² ≤ ½ Σ k L². An overdamped lattice relaxing from that strain moves a
-  // node at about L/β: with the masses scaled to the step, m ≈ Σ k / ω², that is ~dt / (2β) ≈
-  // 3 % of the node's ceiling.
+  // node at about L/β: with the masses scaled to the step, m ≈ Σ k / ω², its kinetic energy is
+  // then ~dt / (2β) ≈ 3 % of the ceiling, its speed 1 / (βω) ≈ 17 % of the ceiling's.
   speed_ceiling_squared_.assign(rest_.size(), std::numeric_limits<double>::infinity());
   std::vector<double> capacity_uj(rest_.size(), 0.0);
   for (const auto& s : springs_) {

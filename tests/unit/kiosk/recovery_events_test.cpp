@@ -6,6 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "ultrasim/kiosk/run_report.hpp"
 
 namespace ultrasim::kiosk {
 namespace {
@@ -62,6 +68,29 @@ TEST(RecoveryEvents, AnotherCauseStartsANewEventAndEachKeepsItsCause) {
   EXPECT_EQ(log.events()[0].frames, 1);
   EXPECT_EQ(log.events()[1].cause, DivergenceCause::kInverted);
   EXPECT_EQ(log.events()[1].frames, 2);
+}
+
+// report.json: each event with its cause, and the diverged frames counted by cause.
+TEST(RecoveryEvents, TheReportWritesEachEventsCauseAndTheDivergedFramesByCause) {
+  RunReport report;
+  report.causes[static_cast<std::size_t>(sim::DivergenceCause::kRunaway)] = 3;
+  report.causes[static_cast<std::size_t>(sim::DivergenceCause::kInverted)] = 2;
+  report.recovery_events.record(7, 0.1, "arm", "msds-explicit", Recovery::kKeptLastGood, 9.0,
+                                sim::DivergenceCause::kRunaway);
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / "recovery_events_test_report.json";
+  write_report_json(path, report);
+  std::stringstream json;
+  json << std::ifstream(path).rdbuf();
+  std::filesystem::remove(path);
+  EXPECT_NE(json.str().find("\"diverged_by_cause\": {\"non-finite\": 0, \"energy\": 0, "
+                            "\"runaway\": 3, \"inverted\": 2, \"seam-torn\": 0}"),
+            std::string::npos)
+      << json.str();
+  EXPECT_NE(json.str().find("{\"kind\": \"kept-last-good\", \"cause\": \"runaway\", "
+                            "\"first_frame\": 7, \"length_frames\": 1"),
+            std::string::npos)
+      << json.str();
 }
 
 TEST(RecoveryEvents, PastTheCapEventsAreCountedNotKept) {

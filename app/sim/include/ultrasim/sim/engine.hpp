@@ -48,7 +48,7 @@ struct EngineStepStats {
   int contact_nodes = 0;           // nodes the probe touches this frame
   double contact_force_n = 0.0;    // |total force the probe exerts on the tissue|, newtons
   int inverted_tets = 0;           // tets with non-positive deformed volume after the step
-  bool diverged = false;           // NaN, energy growth or inversion was detected this frame
+  bool diverged = false;           // a check failed this frame: `cause` says which
   DivergenceCause cause = DivergenceCause::kNone;  // what was detected (the first, if several)
   Recovery recovery = Recovery::kNone;
   // step_within()'s budget ran out before the frame's work was done: the shape shown is less

@@ -71,13 +71,16 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 // never move.
 //
 // Divergence: an attempt at the frame stops at the first step that leaves a non-finite value,
-// kinetic energy above kinetic_energy_ceiling_uj() or inverted tets (counted after every implicit
-// step but the first, every 4th explicit one and the last: the first step takes the probe's whole
-// move since the last frame and may fold tets under it for that one step). The frame is then re-run
-// from its start with the step halved, up to kMaxHalvings times (Recovery::kSubstepped); if every
-// try fails, the tissue is reset to rest (Recovery::kReset) after a blow-up, or kept at the
-// frame's start, at rest, when the tries failed only on inverted tets (Recovery::kKeptLastGood: a
-// probe folding tets under its rim, which no step size fixes). All set diverged; inverted_tets
+// kinetic energy above kinetic_energy_ceiling_uj(), inverted tets or a node past its own speed
+// ceiling (the last two checked after every implicit step but the first, every 4th explicit one
+// and the last: the first step takes the probe's whole move since the last frame and may fold
+// tets under it for that one step). The frame is then re-run from its start with the step
+// halved, up to kMaxHalvings times (Recovery::kSubstepped); if every try fails, the tissue is
+// reset to rest (Recovery::kReset) after a blow-up, or kept at the frame's start, at rest, when
+// the tries failed only on inverted tets or a runaway node (Recovery::kKeptLastGood: a probe
+// folding tets under its rim, which no step size fixes). A node that ran away is weighed: its
+// mass scaled again for its springs as stretched at the frame's start, for the engine's life
+// (node_masses_kg() and mass_scale() change with it). All set diverged and cause; inverted_tets
 // counts the first attempt's inverted tets (0 when accepted: an accepted frame has none). The
 // displacements shown are always finite. Each frame starts again at time_step_s: a step past the
 // limit is caught again, every few frames.
@@ -184,8 +187,9 @@ class MsdsEngine final : public DeformationEngine {
 
   // The explicit step's stability bound for this mesh and these settings, s:
   // forward_euler_stable_time_step_s(msds_max_omega_squared_bound(...), damping_per_stiffness_s).
-  // Holds for the linearisation about rest and for stretched springs; a spring compressed below
-  // half its rest length has a (negative) transverse stiffness beyond k and can need less.
+  // Holds for the linearisation about rest. A spring at length l adds k(1 − L/l) sideways: pulled
+  // long, a node with few springs across it (the 5-tet lattice's six-spring nodes) can pass the
+  // bound (weigh_runaway_nodes); compressed below half its rest length, beyond k, negative.
   double explicit_stable_time_step_s() const;
   // Total free mass over the physical one: > 1 when scale_mass_for_explicit_step raised masses.
   double mass_scale() const { return mass_scale_; }
@@ -368,7 +372,8 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<double> speed_ceiling_squared_;
   double mass_scale_ = 1.0;
   // Mass scaling's inputs, kept for anchored nodes: physical masses, each node's Gershgorin row
-  // sum of its springs (mN/mm), the largest ω² the step is stable for (empty / 0 without scaling).
+  // sum of its springs (mN/mm; a runaway node's as stretched when it was weighed), the largest ω²
+  // the step is stable for (empty / 0 without scaling).
   std::vector<double> physical_mass_kg_;
   std::vector<double> gershgorin_row_mn_per_mm_;
   double stable_omega_squared_ = 0.0;
