@@ -89,29 +89,40 @@ void check_settings(const MsdsSettings& s) {
 
 namespace {
 
-// Per node, the largest absolute row sum of K over its three rows (mN/mm): Gershgorin's radius
-// about zero for the node's rows of K, so ω² ≤ rows / mass. Pinned nodes' rows and columns drop
-// out (their entries are 0).
+// One node's largest absolute row sum of K over its three rows (mN/mm), summed spring by
+// spring: Gershgorin's radius about zero for the node's rows of K, so ω² ≤ row / mass. A pinned
+// neighbour's columns drop out (its entries are 0).
+class GershgorinRow {
+ public:
+  // A spring's 3 × 3 stiffness block on the node, to a neighbour pinned or not.
+  void add(const Eigen::Matrix3d& block, bool neighbour_pinned) {
+    diagonal_ += block;
+    if (!neighbour_pinned) off_diagonal_row_sums_ += block.cwiseAbs().rowwise().sum();
+  }
+  double value() const {
+    return (diagonal_.cwiseAbs().rowwise().sum() + off_diagonal_row_sums_).maxCoeff();
+  }
+
+ private:
+  Eigen::Matrix3d diagonal_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d off_diagonal_row_sums_ = Eigen::Vector3d::Zero();
+};
+
+// Every node's GershgorinRow at rest (0 on pinned nodes, whose rows drop out).
 std::vector<double> gershgorin_row_sums(std::span<const Eigen::Vector3d> rest_positions_mm,
                                         std::span<const MsdsSpring> springs,
                                         std::span<const std::uint8_t> pinned) {
   const std::size_t n = pinned.size();
-  std::vector<Eigen::Matrix3d> diagonal_block(n, Eigen::Matrix3d::Zero());
-  std::vector<Eigen::Vector3d> off_block_row_sum(n, Eigen::Vector3d::Zero());
+  std::vector<GershgorinRow> node_rows(n);
   for (const auto& s : springs) {
     const Eigen::Vector3d dir = (rest_positions_mm[s.b] - rest_positions_mm[s.a]).normalized();
     const Eigen::Matrix3d block = s.stiffness_mn_per_mm * dir * dir.transpose();
-    diagonal_block[s.a] += block;
-    diagonal_block[s.b] += block;
-    if (pinned[s.a] || pinned[s.b]) continue;
-    const Eigen::Vector3d row_sums = block.cwiseAbs().rowwise().sum();
-    off_block_row_sum[s.a] += row_sums;
-    off_block_row_sum[s.b] += row_sums;
+    node_rows[s.a].add(block, pinned[s.b]);
+    node_rows[s.b].add(block, pinned[s.a]);
   }
   std::vector<double> rows(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
-    if (pinned[i]) continue;
-    rows[i] = (diagonal_block[i].cwiseAbs().rowwise().sum() + off_block_row_sum[i]).maxCoeff();
+    if (!pinned[i]) rows[i] = node_rows[i].value();
   }
   return rows;
 }
@@ -355,7 +366,7 @@ void MsdsEngine::weigh_runaway_nodes() {
   if (!(stable_omega_squared_ > 0.0)) return;
   bool weighed = false;
   for (int i = 0; i < node_count(); ++i) {
-    if (pinned_[i] || velocity_[i].squaredNorm() <= speed_ceiling_squared_[i]) continue;
+    if (pinned_[i] || !outruns_its_springs(i)) continue;
     const double row = stretched_gershgorin_row_mn_per_mm(i);
     if (!(row > gershgorin_row_mn_per_mm_[i])) continue;
     gershgorin_row_mn_per_mm_[i] = row;
@@ -370,8 +381,7 @@ double MsdsEngine::stretched_gershgorin_row_mn_per_mm(int node) const {
   // As gershgorin_row_sums, with each spring's stiffness at its length l at the frame's start:
   // k [n nᵀ + g (I − n nᵀ)], g = 1 − L/l (kept within ±1: a spring squeezed below half its
   // length buckles, which no mass steadies).
-  Eigen::Matrix3d diagonal = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d off_row_sums = Eigen::Vector3d::Zero();
+  GershgorinRow row;
   const Eigen::Vector3d x = position_frame_start_[node];
   for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
     const MsdsSpring& spring = springs_[adjacency_spring_[e]];
@@ -384,10 +394,9 @@ double MsdsEngine::stretched_gershgorin_row_mn_per_mm(int node) const {
     const Eigen::Matrix3d block =
         spring.stiffness_mn_per_mm *
         (n * n.transpose() + g * (Eigen::Matrix3d::Identity() - n * n.transpose()));
-    diagonal += block;
-    if (!pinned_[other]) off_row_sums += block.cwiseAbs().rowwise().sum();
+    row.add(block, pinned_[other] != 0);
   }
-  return (diagonal.cwiseAbs().rowwise().sum() + off_row_sums).maxCoeff();
+  return row.value();
 }
 
 void MsdsEngine::build_adjacency() {
@@ -695,16 +704,18 @@ int MsdsEngine::count_inverted_tets() {
   return static_cast<int>(sum_partials(partial_a_, chunks));
 }
 
+bool MsdsEngine::outruns_its_springs(int node) const {
+  // `!(a <= b)` also catches a NaN speed.
+  return !(velocity_[node].squaredNorm() <= speed_ceiling_squared_[node]);
+}
+
 bool MsdsEngine::a_node_outruns_its_springs() {
   const int n = node_count();
   const int chunks = node_chunk_count();
   for_each_chunk(chunks, [&](int chunk) {
     bool runs = false;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      // `!(a <= b)` also catches a NaN speed.
-      runs = runs || !(velocity_[i].squaredNorm() <= speed_ceiling_squared_[i]);
-    }
+    for (int i = chunk * kNodesPerChunk; i < end; ++i) runs = runs || outruns_its_springs(i);
     partial_runaway_[chunk] = runs;
   });
   return std::any_of(partial_runaway_.begin(), partial_runaway_.begin() + chunks,

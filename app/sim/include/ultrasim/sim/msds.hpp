@@ -270,9 +270,10 @@ class MsdsEngine final : public DeformationEngine {
   const StepBudget* budget_ = nullptr;
   bool cut_short_ = false;
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
-  int count_inverted_tets();          // inverted_tet_count() on the job system
-  bool a_node_outruns_its_springs();  // past speed_ceiling_squared_, on the job system
-  void weigh_runaway_nodes();         // mass scaled again for those nodes' stretched springs
+  int count_inverted_tets();                 // inverted_tet_count() on the job system
+  bool outruns_its_springs(int node) const;  // past its speed_ceiling_squared_
+  bool a_node_outruns_its_springs();         // any node, on the job system
+  void weigh_runaway_nodes();                // mass scaled again for those nodes' stretched springs
   void recount_mass_scale();
   double stretched_gershgorin_row_mn_per_mm(int node) const;
   // One step: contacts, spring forces, then one node pass of the integrator (plus CG).
