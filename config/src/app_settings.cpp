@@ -200,6 +200,10 @@ TableSchema<sim::CorotationalSettings> corotational_schema() {
   t.add(field("max_inverted_fraction", &S::max_inverted_fraction, RealIn::closed(0.0, 1.0),
               "Above this fraction of inverted tets a frame is cut short along its update (a "
               "few folded under the probe's rim are accepted)."));
+  t.add(field("rotation_update_tolerance", &S::rotation_update_tolerance, RealIn::closed(0.0, 1.0),
+              "A tet keeps its rotation while its deformation gradient has turned less than "
+              "this from it, radians (its forces then turned by less); 0: every tet's rotation "
+              "every frame."));
   add_held_contact_fields(t);
   return t;
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -88,6 +89,22 @@ Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
   return rotation_by_svd(f);
 }
 
+// How far, in radians to first order, the rotation of f has turned from r. With f = r S and S
+// symmetric, r is exactly f's polar rotation, however S changed: a tet that only stretched or
+// squeezed more keeps its rotation. A turn by θ about an axis adds θ times the mean of the other
+// two stretches to the skew part of rᵀ f: its axial vector over the mean stretch is θ where the
+// stretch is near isotropic. Infinite (extract again) for an inverted or collapsed f.
+double rotation_drift(const Eigen::Matrix3d& r, const Eigen::Matrix3d& f) {
+  constexpr double kCollapsedStretch = 0.1;
+  const Eigen::Matrix3d s = r.transpose() * f;
+  const double mean_stretch = s.trace() / 3.0;
+  if (!(mean_stretch > kCollapsedStretch) || !(f.determinant() > 0.0)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const Eigen::Vector3d axial(s(2, 1) - s(1, 2), s(0, 2) - s(2, 0), s(1, 0) - s(0, 1));
+  return 0.5 * axial.norm() / mean_stretch;
+}
+
 // x_b − x_0 of tet `tet` for a node-major displacement vector on top of rest positions.
 Eigen::Matrix3d deformed_edges(const geometry::Tet& tet, const std::vector<Eigen::Vector3d>& rest,
                                const Eigen::VectorXd& u) {
@@ -139,6 +156,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (!(settings.max_inverted_fraction >= 0.0 && settings.max_inverted_fraction <= 1.0)) {
     throw std::invalid_argument("max_inverted_fraction must be in [0, 1]");
   }
+  if (!(settings.rotation_update_tolerance >= 0.0 && settings.rotation_update_tolerance <= 1.0)) {
+    throw std::invalid_argument("rotation_update_tolerance must be in [0, 1]");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -159,6 +179,10 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   rotation_.assign(tets_.size(), Eigen::Matrix3d::Identity());
   rotated_gradients_ = shape_gradients_;
   element_rhs_.assign(tets_.size(), Eigen::Matrix<double, 3, 4>::Zero());
+  rotation_moved_.assign(tets_.size(), 1);
+  block_moved_.assign(block_col_.size(), 1);
+  node_moved_.assign(n, 1);
+  loads_changed_ = true;
   assemble_warped_system();
 }
 
@@ -317,10 +341,12 @@ void CorotationalFem::set_nodal_load(int node, const Eigen::Vector3d& force_mn) 
   }
   if (fixed_[node]) return;
   load_mn_.segment<3>(3 * node) = force_mn;
+  loads_changed_ = true;
 }
 
 void CorotationalFem::clear_nodal_loads() {
   load_mn_.setZero();
+  loads_changed_ = true;
 }
 
 void CorotationalFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
@@ -336,8 +362,10 @@ void CorotationalFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   for (int node = 0; node < node_count(); ++node) {
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
   }
-  // The contacts belonged to the old shape; the next step finds them on this one.
+  // The contacts and the rotations belonged to the old shape; the next step finds them on this
+  // one, every rotation extracted anew.
   contacts_.clear();
+  extract_every_rotation_ = true;
   stop_sliding();
   std::fill(contact_push_mn_.begin(), contact_push_mn_.end(), 0.0);
   update_deformed();
@@ -439,14 +467,21 @@ void CorotationalFem::hold_constrained_nodes() {
   }
 }
 
-void CorotationalFem::update_rotations() {
-  for_each_chunk(tet_chunks(), [&](int chunk) {
+void CorotationalFem::update_rotations(double tolerance) {
+  if (extract_every_rotation_) tolerance = 0.0;
+  extract_every_rotation_ = false;
+  const int chunks = tet_chunks();
+  for_each_chunk(chunks, [&](int chunk) {
     const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);
+    int updated = 0;
     for (int t = chunk * kTetsPerChunk; t < end; ++t) {
       const auto& g = shape_gradients_[t];
       // F = Σ_b (x_b − x_0) g_bᵀ.
       const Eigen::Matrix3d f =
           deformed_edges(tets_[t], rest_, u_).lazyProduct(g.rightCols<3>().transpose());
+      rotation_moved_[t] = !(rotation_drift(rotation_[t], f) < tolerance);
+      if (!rotation_moved_[t]) continue;
+      ++updated;
       const Eigen::Matrix3d r = polar_rotation(f);
       rotation_[t] = r;
       rotated_gradients_[t].noalias() = r.lazyProduct(g);
@@ -455,16 +490,30 @@ void CorotationalFem::update_rotations() {
       const Eigen::Matrix3d strain = Eigen::Matrix3d::Identity() - 0.5 * (r + r.transpose());
       element_rhs_[t].noalias() = (r * volume_stress(strain, lame_volume_[t])).lazyProduct(g);
     }
+    chunk_sums_[chunk] = Eigen::Vector4d(updated, 0.0, 0.0, 0.0);
   });
+  rotations_updated_ = static_cast<int>(sum_chunks(chunks)[0]);
 }
 
 void CorotationalFem::assemble_warped_system() {
+  const auto moved = [&](int code) { return rotation_moved_[code >> 4] != 0; };
   // A gather over global blocks, row bands in parallel: no two tasks write the same value.
   for_each_chunk(node_chunks(), [&](int chunk) {
     const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
     for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      // The diagonal block's contributions are exactly the tets holding this node, one each:
+      // if none of them moved, neither did any block of its row nor its rhs's tet terms.
+      const int diag = diagonal_block_[node];
+      const auto* const contributions = contribution_.data();
+      node_moved_[node] = std::any_of(contributions + contribution_start_[diag],
+                                      contributions + contribution_start_[diag + 1], moved);
+      if (!node_moved_[node] && !loads_changed_) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         if (mirror_block_[k] >= 0) continue;  // below the diagonal: the second pass
+        block_moved_[k] =
+            node_moved_[node] && std::any_of(contributions + contribution_start_[k],
+                                             contributions + contribution_start_[k + 1], moved);
+        if (!block_moved_[k]) continue;  // every tet in it kept its rotation
         Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
         for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
           const int code = contribution_[c];
@@ -474,9 +523,7 @@ void CorotationalFem::assemble_warped_system() {
         }
         block_value_[k] = sum;
       }
-      // rhs: the element rhs of every tet holding this node (the diagonal block's contributions
-      // are exactly those tets, one each) plus the external load.
-      const int diag = diagonal_block_[node];
+      // rhs: the element rhs of every tet holding this node plus the external load.
       Eigen::Vector3d rhs = load_mn_.segment<3>(3 * node);
       for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
         const int code = contribution_[c];
@@ -489,12 +536,19 @@ void CorotationalFem::assemble_warped_system() {
           (d.array() > 0.0).select(d.cwiseInverse(), Eigen::Vector3d::Zero());
     }
   });
-  // Blocks below the diagonal, from the finished blocks above it.
+  loads_changed_ = false;
+  // Blocks below the diagonal, from the finished blocks above it. A block's tets hold both its
+  // nodes: in the row of a node that no moved tet holds, none changed (and block_moved_ is
+  // left from an earlier frame in such a row).
   for_each_chunk(node_chunks(), [&](int chunk) {
     const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
     for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-        if (mirror_block_[k] >= 0) block_value_[k] = block_value_[mirror_block_[k]].transpose();
+        const int mirror = mirror_block_[k];
+        if (mirror >= 0 && node_moved_[block_col_[k]] && block_moved_[mirror]) {
+          block_value_[k] = block_value_[mirror].transpose();
+        }
       }
     }
   });
@@ -708,7 +762,7 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
                                              const StepBudget& may_continue) {
   u_before_step_ = u_;
   apply_constraints(probe);
-  update_rotations();
+  update_rotations(settings_.rotation_update_tolerance);
   assemble_warped_system();
   const PcgResult pcg =
       run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance, may_continue);
@@ -733,8 +787,8 @@ CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_m
       static_cast<int>(2 * dofs + 100);  // CG needs ≤ dofs steps, in exact arithmetic
   PcgResult pcg;
   while (result.outer_iterations < max_outer) {
-    u_before_step_ = u_;  // the shape this outer iteration starts from
-    update_rotations();
+    u_before_step_ = u_;    // the shape this outer iteration starts from
+    update_rotations(0.0);  // the reference: every rotation exact
     assemble_warped_system();
     pcg = run_pcg(max_pcg, kConvergedRelativeResidual, {});
     result.pcg_iterations += pcg.iterations;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -88,6 +89,13 @@ TEST(CorotationalFem, RejectsMismatchedInputsBadTetsNonPhysicalMaterialsAndAZero
     bad_fraction.max_inverted_fraction = fraction;
     EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_fraction), std::invalid_argument)
         << fraction;
+  }
+  for (double tolerance : {-1e-3, 2.0, std::nan("")}) {
+    CorotationalSettings bad_tolerance;
+    bad_tolerance.rotation_update_tolerance = tolerance;
+    EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_tolerance),
+                 std::invalid_argument)
+        << tolerance;
   }
   auto bad = b.materials;
   bad[3].poisson_ratio = 0.5;
@@ -250,7 +258,9 @@ TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhen
   EngineStepStats lifted;
   for (int frame = 0; frame < 300; ++frame) lifted = fem.step(nullptr, 1.0 / 30);
   EXPECT_EQ(lifted.contact_nodes, 0);
-  EXPECT_LT(max_nodal_norm(fem.displacements_mm()), 1e-6);
+  // A tet back within rotation_update_tolerance of rest keeps a rotation up to that far from
+  // the identity; K_e cancels an infinitesimal rotation, so what it leaves is second order.
+  EXPECT_LT(max_nodal_norm(fem.displacements_mm()), 1e-5);
 }
 
 // Compressed tissue follows a probe that lifts slowly: the contact holds while the probe is
@@ -359,7 +369,9 @@ TEST(CorotationalFem, PerFrameBudgetApproachesTheConvergedAnswerAsIterationsGrow
   Block b = make_block();
   const ProbeCollider probe = sphere_probe(3.0);
   const auto error_after = [&](int frames, int iterations) {
-    CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(iterations));
+    CorotationalSettings settings = budget(iterations);
+    settings.rotation_update_tolerance = 0.0;  // the CG's budget alone
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
     for (int frame = 0; frame < frames; ++frame) fem.step(&probe, 1.0 / 30);
     const Eigen::VectorXd per_frame = fem.displacements_mm();
     const auto converged = fem.solve_to_convergence(1e-12, 100);  // same contacts
@@ -415,6 +427,110 @@ ProbeCollider sliding_face(int frame) {
   const double x = phase < 20 ? -5.0 + 0.5 * phase : 5.0 - 0.5 * (phase - 20);
   return ProbeCollider::linear_face({x, 0.3, depth}, Eigen::Quaterniond::Identity(), 20.0, 10.0,
                                     2.0);
+}
+
+// A tet whose deformation gradient has turned less than rotation_update_tolerance from its rotation
+// keeps that rotation (its polar decomposition and its blocks skipped), which turns its force by
+// less than the tolerance. Under a held press the frames settle where every tet's rotation is
+// within the tolerance of its own: against the converged answer with every rotation exact, off by
+// less than the tolerance's share of the peak, less with a smaller tolerance, and once settled a
+// frame extracts (almost) no rotation at all.
+TEST(CorotationalFem, KeptRotationsSettleWithinTheirToleranceOfTheConvergedAnswer) {
+  // Twice the test block's width and length, so that the probe presses on a part of it.
+  Block b;
+  b.mesh = geometry::make_grid_tet_mesh(
+      geometry::GridSpec::spanning({-40, -20, 0}, {40, 20, 20}, {25, 13, 7}));
+  b.materials.assign(b.mesh.tets.size(), Material{1, "tissue", 30.0, 0.45});
+  for (const Eigen::Vector3d& p : b.mesh.rest_positions_mm) b.fixed.push_back(p.z() == 20.0);
+  const ProbeCollider probe = sphere_probe(4.0);
+  struct Run {
+    Eigen::VectorXd u;
+    double last_frames_updated = 0.0;  // fraction of the rotations extracted, last 10 frames
+    Eigen::VectorXd converged;         // every rotation exact, the same contacts
+  };
+  const auto run = [&](double tolerance) {
+    CorotationalSettings settings = budget(20);
+    settings.rotation_update_tolerance = tolerance;
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+    Run r;
+    constexpr int kFrames = 60;
+    for (int frame = 0; frame < kFrames; ++frame) {
+      fem.step(&probe, 1.0 / 30);
+      if (frame >= kFrames - 10) r.last_frames_updated += fem.rotations_updated();
+    }
+    r.last_frames_updated /= 10.0 * fem.tet_count();
+    r.u = fem.displacements_mm();
+    EXPECT_TRUE(fem.solve_to_convergence(1e-9, 100).converged);
+    r.converged = fem.displacements_mm();
+    return r;
+  };
+  const Run every = run(0.0), kept = run(1e-3), coarse = run(1e-2);
+  const double peak = max_nodal_norm(every.converged);
+  const auto error = [&](const Run& r) { return max_nodal_norm(r.u - r.converged) / peak; };
+  EXPECT_LT(error(every), 1e-6);
+  EXPECT_LT(error(kept), 1e-3);
+  EXPECT_GT(error(coarse), 3.0 * error(kept));
+  EXPECT_EQ(every.last_frames_updated, 1.0);
+  EXPECT_LT(kept.last_frames_updated, 0.01);
+  std::printf(
+      "error against converged: every %.1e, 1e-3 %.1e, 1e-2 %.1e; rotations a frame "
+      "once settled %.1f %% and %.1f %%\n",
+      error(every), error(kept), error(coarse), 100 * kept.last_frames_updated,
+      100 * coarse.last_frames_updated);
+}
+
+// Only the blocks of tets whose rotation moved are summed again: whatever a frame kept, the
+// warped stiffness is Σ R K_e Rᵀ of the rotations the tets hold, written out per tet from
+// tet_stiffness(); and a load set after frames that moved nothing still reaches the rhs.
+TEST(CorotationalFem, TheKeptAssemblyIsTheWarpedStiffnessOfTheRotationsTheTetsHold) {
+  Block b = make_block();
+  CorotationalSettings settings = budget(20);
+  settings.rotation_update_tolerance = 1e-2;  // many tets kept, some moved, each frame
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+  const auto& p = b.mesh.rest_positions_mm;
+  const auto written_out = [&] {
+    std::vector<Eigen::Triplet<double>> entries;
+    for (int t = 0; t < fem.tet_count(); ++t) {
+      const auto& tet = b.mesh.tets[t];
+      const Material& m = b.materials[t];
+      const Eigen::Matrix<double, 12, 12> ke = tet_stiffness(
+          p[tet[0]], p[tet[1]], p[tet[2]], p[tet[3]], m.youngs_modulus_kpa, m.poisson_ratio);
+      const Eigen::Matrix3d& r = fem.tet_rotation(t);
+      for (int a = 0; a < 4; ++a) {
+        for (int c = 0; c < 4; ++c) {
+          const Eigen::Matrix3d block = r * ke.block<3, 3>(3 * a, 3 * c) * r.transpose();
+          for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j)
+              entries.emplace_back(3 * tet[a] + i, 3 * tet[c] + j, block(i, j));
+          }
+        }
+      }
+    }
+    Eigen::SparseMatrix<double, Eigen::RowMajor> k(3 * fem.node_count(), 3 * fem.node_count());
+    k.setFromTriplets(entries.begin(), entries.end());
+    return k;
+  };
+  int kept_frames = 0;
+  for (int frame = 0; frame < 40; ++frame) {
+    const ProbeCollider probe = sliding_face(frame);
+    fem.step(&probe, 1.0 / 30);
+    if (fem.rotations_updated() > 0 && fem.rotations_updated() < fem.tet_count()) ++kept_frames;
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> want = written_out();
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> diff = fem.warped_stiffness() - want;
+    ASSERT_LT(diff.norm(), 1e-12 * want.norm()) << "frame " << frame;
+  }
+  EXPECT_GT(kept_frames, 10);
+
+  // Held still until nothing moves, then a load on a free node.
+  const ProbeCollider probe = sliding_face(20);
+  for (int frame = 0; frame < 60; ++frame) fem.step(&probe, 1.0 / 30);
+  ASSERT_EQ(fem.rotations_updated(), 0);
+  const int corner = node_at(b.mesh, {-20, -10, 0});
+  ASSERT_GE(corner, 0);
+  const Eigen::Vector3d before = fem.displacements_mm().segment<3>(3 * corner);
+  fem.set_nodal_load(corner, {0, 0, 50});
+  fem.step(&probe, 1.0 / 30);
+  EXPECT_GT(fem.displacements_mm()[3 * corner + 2] - before.z(), 0.01);
 }
 
 // Under the published stick contact the face's rounded rim folds a few tets as it drags the skin
@@ -533,13 +649,16 @@ TEST(CorotationalFem, BlownUpFrameIsThrownAwayKeepingThePreviousShape) {
 TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   Block b = make_block();
   const ProbeCollider probe = sphere_probe(3.0);
-  CorotationalFem first(b.mesh, b.materials, b.fixed, budget(20));
+  // Every rotation every frame: a rotation a tet keeps is state the displacements do not carry.
+  CorotationalSettings settings = budget(20);
+  settings.rotation_update_tolerance = 0.0;
+  CorotationalFem first(b.mesh, b.materials, b.fixed, settings);
   for (int frame = 0; frame < 5; ++frame) first.step(&probe, 1.0 / 30);
   Eigen::VectorXd handed_over = first.displacements_mm();
   for (int n = 0; n < b.mesh.node_count(); ++n)
     if (b.fixed[n]) handed_over.segment<3>(3 * n) = Eigen::Vector3d(1, 2, 3);  // ignored
 
-  CorotationalFem second(b.mesh, b.materials, b.fixed, budget(20));
+  CorotationalFem second(b.mesh, b.materials, b.fixed, settings);
   second.set_displacements_mm(handed_over);
   EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
   for (int n = 0; n < b.mesh.node_count(); ++n) {
@@ -548,6 +667,14 @@ TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   first.step(&probe, 1.0 / 30);
   second.step(&probe, 1.0 / 30);
   EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
+
+  // Handed over to an engine whose rotations were kept from another shape (rest), every
+  // rotation is extracted from the new one.
+  CorotationalFem lazy(b.mesh, b.materials, b.fixed, budget(20));
+  lazy.step(nullptr, 1.0 / 30);
+  lazy.set_displacements_mm(handed_over);
+  lazy.step(&probe, 1.0 / 30);
+  EXPECT_EQ(lazy.rotations_updated(), lazy.tet_count());
 
   EXPECT_THROW(second.set_displacements_mm(Eigen::VectorXd::Zero(5)), std::invalid_argument);
   Eigen::VectorXd with_nan = first.displacements_mm();

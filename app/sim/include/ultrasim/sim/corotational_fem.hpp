@@ -35,8 +35,11 @@ struct CorotationalConvergence {
 // Each frame: contacts are found on the last frame's shape (nodes inside the probe are put at
 // the collider's push-out target and held there, or, under the default Coulomb slip, held along
 // the probe's normal only and left to slide in the CG as the PCG FEM's; fixed nodes at rest), every
-// tet's rotation is extracted from the shape with those nodes moved, the warped stiffness K_R = Σ R
-// K_e Rᵀ is assembled into a block-sparse matrix whose pattern and scatter map were built once, and
+// tet's rotation is extracted from the shape with those nodes moved (a tet whose deformation
+// gradient has turned less than settings.rotation_update_tolerance from its rotation keeps it),
+// the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a block-sparse matrix
+// whose pattern and scatter map were built once (only the blocks of tets whose rotation changed
+// are summed again), and
 // K_R u = Σ R K_e (x0 − Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with
 // a fixed iteration budget, warm-started from the last frame. So each frame's rotations lag its
 // solve by one frame; solve_to_convergence() repeats rotations and solves until the shape stops
@@ -86,8 +89,9 @@ class CorotationalFem final : public DeformationEngine {
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
 
-  // Live switch. Fixed nodes stay at zero. Throws std::invalid_argument when u_mm does not have
-  // 3 × node count entries or holds a non-finite value.
+  // Live switch. Fixed nodes stay at zero; the next step extracts every tet's rotation. Throws
+  // std::invalid_argument when u_mm does not have 3 × node count entries or holds a non-finite
+  // value.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
   // Holds a node at a displacement (mm) from the next step or solve on, until released; ignored
@@ -125,6 +129,9 @@ class CorotationalFem final : public DeformationEngine {
 
   // Rotation of tet t at the last assembly.
   const Eigen::Matrix3d& tet_rotation(int t) const { return rotation_[t]; }
+  // Tets whose rotation the last step (or the last outer iteration of solve_to_convergence())
+  // extracted anew; the others kept theirs (settings.rotation_update_tolerance).
+  int rotations_updated() const { return rotations_updated_; }
 
   int node_count() const { return static_cast<int>(rest_.size()); }
   int tet_count() const { return static_cast<int>(tets_.size()); }
@@ -155,7 +162,11 @@ class CorotationalFem final : public DeformationEngine {
   // Marks fixed, prescribed and contact nodes held and puts them at their displacements (a
   // sliding contact, as marked, keeps its own).
   void hold_constrained_nodes();
-  void update_rotations();
+  // Extracts the rotation of every tet whose deformation gradient has turned `tolerance` radians
+  // or more from its rotation (every tet with 0) and marks it in rotation_moved_.
+  void update_rotations(double tolerance);
+  // Sums again the blocks of K_R with a tet marked in rotation_moved_, and the rhs and the
+  // preconditioner of the nodes such a tet holds (every node's after a load changed).
   void assemble_warped_system();
   struct PcgResult {
     int iterations = 0;
@@ -216,6 +227,12 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<Eigen::Matrix3d> rotation_;                       // per tet
   std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
   std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
+  bool extract_every_rotation_ = false;       // at the next update, whatever the tolerance
+  std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
+  std::vector<std::uint8_t> block_moved_;     // per block on or above the diagonal: summed again
+  std::vector<std::uint8_t> node_moved_;      // per node: held by a tet whose rotation moved
+  bool loads_changed_ = true;                 // since the last assembly: every rhs again
+  int rotations_updated_ = 0;
   Eigen::VectorXd u_, rhs_, inverse_diagonal_;
   Eigen::VectorXd r_, z_, p_, q_, u_before_step_;
   std::vector<std::uint8_t> held_;  // fixed, prescribed or in contact this frame

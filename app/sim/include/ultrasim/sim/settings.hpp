@@ -104,6 +104,12 @@ struct CorotationalSettings {
   // node) a frame is cut short along its update; with 0, no frame may end with more inverted
   // tets than it started with.
   double max_inverted_fraction = 0.005;
+  // A tet keeps the rotation it has while its deformation gradient has turned less than this
+  // (radians, to first order) away from it: its polar decomposition and its share of the
+  // assembly are skipped, its forces then turned by less than this. A tet that only stretched or
+  // squeezed has not turned, and most of a mesh away from the probe barely moves from frame to
+  // frame. 0: every tet's rotation every frame.
+  double rotation_update_tolerance = 1e-3;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };

@@ -1,0 +1,76 @@
+// The corotational FEM's frame with kept rotations (rotation_update_tolerance, default 1e-3)
+// against its reference, every tet's rotation extracted and its blocks summed every frame (0),
+// both stepped through the same frames, alternating, so that both see the same machine. Scene:
+// the engine benchmarks' block (the default case's region, 60 × 40 × 45 mm) at the default case's
+// mesh (37 × 9 × 28 nodes), two threads as in the kiosk; probe: the 38 mm face pressed 4 mm, then
+// (`slide` 1) sliding ±5 mm at 0.5 mm a frame or (`slide` 0) held. Counters: each one's mean ms
+// a frame, kept/every, the share of rotations the kept run extracted a frame, and its field's
+// difference from the reference's after the measured frames (max norm, relative).
+//   build/ci/tests/bench/corotational_bench
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+
+#include "engine_scene.hpp"
+#include "ultrasim/drivers/posix/thread_pool.hpp"
+#include "ultrasim/sim/corotational_fem.hpp"
+
+namespace {
+
+using namespace ultrasim;
+using Clock = std::chrono::steady_clock;
+
+void BM_KeptRotations(benchmark::State& state) {
+  const double tolerance = 1e-3 * static_cast<double>(state.range(0));
+  const bool slide = state.range(1) != 0;
+  const bench::Block& b = bench::block(37, 9, 28);
+  drivers::posix::ThreadPool jobs(2);
+  sim::CorotationalSettings every_settings, kept_settings;
+  every_settings.rotation_update_tolerance = 0.0;
+  kept_settings.rotation_update_tolerance = tolerance;
+  sim::CorotationalFem every(b.mesh, b.materials, b.fixed, every_settings, &jobs);
+  sim::CorotationalFem kept(b.mesh, b.materials, b.fixed, kept_settings, &jobs);
+  const auto probe_at = [&](int frame) {
+    return bench::probe_at(slide ? frame : std::min(frame, 20));
+  };
+  int frame = 0;
+  for (; frame < bench::kAccuracyFrames; ++frame) {  // the press (and a slide), untimed
+    const auto probe = probe_at(frame);
+    every.step(&probe, bench::kFrameDtS);
+    kept.step(&probe, bench::kFrameDtS);
+  }
+  double every_s = 0.0, kept_s = 0.0, rotations = 0.0;
+  for (auto _ : state) {
+    const auto probe = probe_at(frame++);
+    const auto t0 = Clock::now();
+    every.step(&probe, bench::kFrameDtS);
+    const auto t1 = Clock::now();
+    kept.step(&probe, bench::kFrameDtS);
+    const auto t2 = Clock::now();
+    every_s += std::chrono::duration<double>(t1 - t0).count();
+    kept_s += std::chrono::duration<double>(t2 - t1).count();
+    rotations += kept.rotations_updated();
+    state.SetIterationTime(std::chrono::duration<double>(t2 - t0).count());
+  }
+  const auto n = static_cast<double>(state.iterations());
+  state.counters["every_ms"] = 1e3 * every_s / n;
+  state.counters["kept_ms"] = 1e3 * kept_s / n;
+  state.counters["kept/every"] = kept_s / every_s;
+  state.counters["rotations_share"] = rotations / (n * kept.tet_count());
+  state.counters["difference"] =
+      bench::relative_max_error(kept.displacements_mm(), every.displacements_mm());
+}
+
+BENCHMARK(BM_KeptRotations)
+    ->ArgNames({"tolerance_e-3", "slide"})
+    ->Args({1, 1})
+    ->Args({10, 1})
+    ->Args({1, 0})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0);
+
+}  // namespace
+
+BENCHMARK_MAIN();
