@@ -33,8 +33,8 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -227,6 +227,16 @@ void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) 
   }
 }
 
+int usage(const char* problem, const char* argument) {
+  std::fprintf(stderr, "stitch_price: %s%s\n", problem, argument);
+  std::fprintf(stderr,
+               "usage: stitch_price --out DIR [--quick] [--variant NAME] [--path-only] "
+               "[--contact stick|slip]\nvariants:");
+  for (const Variant& v : kVariants) std::fprintf(stderr, " %s", v.name);
+  std::fprintf(stderr, "\n");
+  return 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -235,25 +245,34 @@ int main(int argc, char** argv) {
   bool quick = false;
   bool path_only = false;
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--contact") == 0 && i + 1 < argc) {
-      if (std::strcmp(argv[i + 1], "slip") == 0) {
-        g_contact = testing::with_held_contact(sim::HeldContactModel::kCoulombSlip, 0.0);
-      } else if (std::strcmp(argv[i + 1], "stick") != 0) {
-        std::fprintf(stderr, "stitch_price: --contact takes stick or slip, not %s\n", argv[i + 1]);
-        return 2;
+    const std::string argument = argv[i];
+    const bool takes_value =
+        argument == "--out" || argument == "--variant" || argument == "--contact";
+    if (takes_value && i + 1 >= argc) return usage("a value is missing after ", argv[i]);
+    if (argument == "--out") {
+      dir = argv[++i];
+    } else if (argument == "--variant") {
+      only = argv[++i];
+      if (std::none_of(std::begin(kVariants), std::end(kVariants),
+                       [&](const Variant& v) { return only == v.name; })) {
+        return usage("no variant named ", only.c_str());
       }
+    } else if (argument == "--contact") {
+      const std::string contact = argv[++i];
+      if (contact == "slip") {
+        g_contact = testing::with_held_contact(sim::HeldContactModel::kCoulombSlip, 0.0);
+      } else if (contact != "stick") {
+        return usage("--contact takes stick or slip, not ", contact.c_str());
+      }
+    } else if (argument == "--quick") {
+      quick = true;
+    } else if (argument == "--path-only") {
+      path_only = true;
+    } else {
+      return usage("unknown argument ", argv[i]);
     }
-    if (std::strcmp(argv[i], "--out") == 0 && i + 1 < argc) dir = argv[i + 1];
-    if (std::strcmp(argv[i], "--variant") == 0 && i + 1 < argc) only = argv[i + 1];
-    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
-    if (std::strcmp(argv[i], "--path-only") == 0) path_only = true;
   }
-  if (dir.empty()) {
-    std::fprintf(stderr,
-                 "usage: stitch_price --out DIR [--quick] [--variant NAME] [--path-only] "
-                 "[--contact stick|slip]\n");
-    return 2;
-  }
+  if (dir.empty()) return usage("--out DIR is needed", "");
   const Region r = bench::make_region(kSide, kDepth);
   drivers::posix::ThreadPool jobs(2);
   std::ofstream frames(dir + "/stitch-frames.csv");

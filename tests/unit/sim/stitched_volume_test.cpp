@@ -831,7 +831,7 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
     SCOPED_TRACE(out_of_time ? "no time for smaller steps" : "unbudgeted");
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit,
                             EngineSettings{}, StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
-    int refused = 0;
+    int refused = 0, substepped = 0;
     Eigen::VectorXd before = stitched.displacements_mm();
     for (int f = 0; f < 40; ++f) {
       const ProbeCollider probe = sphere_probe(kSeamXmm - 5.0, 9.0, 0.5 * (f + 1), 6.0);
@@ -840,6 +840,14 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
                                     : stitched.step(&probe, 1.0 / 60);
       ASSERT_NE(s.recovery, Recovery::kReset) << "frame " << f;
       ASSERT_TRUE(stitched.displacements_mm().allFinite());
+      // Every diverged frame says why, the ones taken in smaller steps too.
+      EXPECT_EQ(s.diverged, s.cause != DivergenceCause::kNone) << "frame " << f;
+      if (s.recovery == Recovery::kSubstepped) {
+        ++substepped;
+        EXPECT_TRUE(s.cause == DivergenceCause::kInverted || s.cause == DivergenceCause::kRunaway ||
+                    s.cause == DivergenceCause::kEnergy)
+            << cause_key(s.cause);
+      }
       if (s.recovery == Recovery::kKeptLastGood) {
         ++refused;
         EXPECT_TRUE(s.diverged);
@@ -853,6 +861,47 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
       before = stitched.displacements_mm();
     }
     EXPECT_GT(refused, 0) << "the press never went too deep: the test would mean nothing";
+  }
+}
+
+// A sub-volume that takes a frame in smaller steps (diverged, recovered, the frame accepted)
+// gives the stitched frame its cause, whichever of the frame's exchanges diverged: the explicit
+// MSDS with its masses unscaled and twice its stable step, whose unstable mode the speed and
+// energy ceilings catch within a few frames (MsdsRecovery's moderately unstable step, split in
+// two).
+TEST(StitchedVolume, AFrameASubVolumeTookInSmallerStepsStandsAndSaysWhy) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  MsdsSettings unscaled;
+  unscaled.scale_mass_for_explicit_step = false;
+  const double bound_s =
+      MsdsEngine(MsdsIntegrator::kExplicitEuler, r.mesh, r.materials, r.fixed, unscaled)
+          .explicit_stable_time_step_s();
+  EngineSettings settings;
+  settings.msds = unscaled;
+  settings.msds.time_step_s = 2.0 * bound_s;
+  for (const int exchanges : {1, 2}) {
+    SCOPED_TRACE(exchanges);
+    StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
+    stitching.msds_exchanges_per_frame = exchanges;
+    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit, settings,
+                            stitching, &jobs);
+    int substepped = 0;
+    for (int f = 0; f < 10; ++f) {
+      const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, std::min(2.0, 0.5 * (f + 1)));
+      const Eigen::VectorXd before = stitched.displacements_mm();
+      const EngineStepStats s = stitched.step(&probe, 1.0 / 60);
+      ASSERT_TRUE(stitched.displacements_mm().allFinite());
+      EXPECT_EQ(s.diverged, s.cause != DivergenceCause::kNone) << "frame " << f;
+      if (s.recovery != Recovery::kSubstepped) continue;
+      ++substepped;
+      EXPECT_TRUE(s.diverged);
+      // The unstable mode's nodes outrun their springs (or the lattice its energy) first.
+      EXPECT_TRUE(s.cause == DivergenceCause::kRunaway || s.cause == DivergenceCause::kEnergy)
+          << cause_key(s.cause);
+      EXPECT_NE(stitched.displacements_mm(), before) << "the frame stands";
+    }
+    EXPECT_GT(substepped, 0) << "no frame needed smaller steps: the test would mean nothing";
   }
 }
 
