@@ -268,6 +268,10 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
   t.add(field("msds_exchanges_per_frame", &S::msds_exchanges_per_frame, IntegerIn<int>{1, 64},
               "MSDS (both): seam exchanges per frame; must divide [msds] steps_per_frame (1: "
               "with 2 the implicit MSDS's frames in the large soak were slower)."));
+  t.add(field("corotational_exchanges_per_frame", &S::corotational_exchanges_per_frame,
+              IntegerIn<int>{1, 64},
+              "Corotational FEM: seam exchanges per frame (1: each part extracts rotations and "
+              "assembles again, and 2 took twice the time)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

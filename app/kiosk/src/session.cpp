@@ -111,7 +111,8 @@ std::unique_ptr<sim::DeformationEngine> Session::make_method(sim::EngineKind met
     throw std::invalid_argument(
         std::string(sim::engine_key(method)) + " cannot run on case '" + tissue_.settings.name +
         "': it is split into sub-volumes ([mesh] sub_volumes), and only "
-        "pcg, msds-explicit and msds-implicit run stitched ([sim] method, or --method)");
+        "pcg, corotational, msds-explicit and msds-implicit run stitched ([sim] method, or "
+        "--method)");
   }
   if (split_into_sub_volumes(tissue_)) {
     sim::StitchingSettings stitching = settings_.stitching;

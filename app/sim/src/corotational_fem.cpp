@@ -165,10 +165,12 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
 
   const int dofs = 3 * n;
   u_ = rhs_ = inverse_diagonal_ = load_mn_ = Eigen::VectorXd::Zero(dofs);
+  anchor_stiffness_ = anchor_load_mn_ = Eigen::VectorXd::Zero(dofs);
   r_ = z_ = p_ = q_ = u_before_step_ = Eigen::VectorXd::Zero(dofs);
   held_.assign(n, 0);
   contact_push_mn_.assign(n, 0.0);
   contacts_.reserve(n);  // every node at most once: step() never grows it
+  anchored_nodes_.reserve(n);
   prescribed_.assign(n, 0);
   prescribed_u_.assign(n, Eigen::Vector3d::Zero());
   deformed_ = rest_;
@@ -450,7 +452,84 @@ Eigen::Vector3d CorotationalFem::node_force_mn(int node) const {
   for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
     ku.noalias() += block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
   }
-  return ku - rhs_.segment<3>(3 * node);
+  return ku + anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node)) -
+         anchor_load_mn_.segment<3>(3 * node) - rhs_.segment<3>(3 * node);
+}
+
+void CorotationalFem::update_inverse_diagonal(int node) {
+  // A node in no tet (and no anchor) has a zero diagonal and is left alone.
+  const Eigen::Vector3d d =
+      block_value_[diagonal_block_[node]].diagonal() + anchor_stiffness_.segment<3>(3 * node);
+  inverse_diagonal_.segment<3>(3 * node) =
+      (d.array() > 0.0).select(d.cwiseInverse(), Eigen::Vector3d::Zero());
+}
+
+void CorotationalFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
+  check_anchor_springs(anchors, node_count());
+  for (int node : anchored_nodes_) {
+    anchor_stiffness_.segment<3>(3 * node).setZero();
+    anchor_load_mn_.segment<3>(3 * node).setZero();
+    update_inverse_diagonal(node);
+  }
+  anchored_nodes_.clear();
+  for (const auto& a : anchors) {
+    // k (target − x) = k (target − rest) − k u: a load and a diagonal stiffness.
+    anchor_stiffness_.segment<3>(3 * a.node).setConstant(a.stiffness_mn_per_mm);
+    anchor_load_mn_.segment<3>(3 * a.node) = a.stiffness_mn_per_mm * (a.target_mm - rest_[a.node]);
+    update_inverse_diagonal(a.node);
+    anchored_nodes_.push_back(a.node);  // at most one per node: no allocation once warmed up
+  }
+}
+
+Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::rest_stiffness_mn_per_mm() const {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(tets_.size() * 16 * 9);
+  for (int t = 0; t < tet_count(); ++t) {
+    const auto& g = shape_gradients_[t];
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b) {
+        const Eigen::Matrix3d k = stiffness_block(g.col(a), g.col(b), lame_volume_[t]);
+        for (int i = 0; i < 3; ++i) {
+          for (int j = 0; j < 3; ++j) {
+            triplets.emplace_back(3 * tets_[t][a] + i, 3 * tets_[t][b] + j, k(i, j));
+          }
+        }
+      }
+    }
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> k(3 * node_count(), 3 * node_count());
+  k.setFromTriplets(triplets.begin(), triplets.end());
+  return k;
+}
+
+void CorotationalFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
+  // rhs_ − loads is Σ R K_e (x0 − Rᵀ x0): with −K_R u, the tets' pull at the current shape.
+  for (int node = 0; node < node_count(); ++node) {
+    Eigen::Vector3d ku = Eigen::Vector3d::Zero();
+    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+      ku.noalias() += block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+    }
+    forces_mn.segment<3>(3 * node) = rhs_.segment<3>(3 * node) - load_mn_.segment<3>(3 * node) - ku;
+  }
+}
+
+void CorotationalFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
+  for (int node = 0; node < node_count(); ++node) {
+    if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
+  }
+  for (int node : sliding_.nodes()) {
+    if (prescribed_[node]) continue;  // prescribed since the step: it stays where it was put
+    Eigen::Vector3d du = du_mm.segment<3>(3 * node);
+    sliding_.project(node, du);
+    u_.segment<3>(3 * node) += du;
+  }
+  update_deformed();
+}
+
+void CorotationalFem::move_held_node_mm(int node, const Eigen::Vector3d& position_mm) {
+  if (fixed_[node] || !holds_node(node)) return;
+  u_.segment<3>(3 * node) = position_mm - rest_[node];
+  deformed_[node] = position_mm;
 }
 
 void CorotationalFem::hold_constrained_nodes() {
@@ -530,10 +609,7 @@ void CorotationalFem::assemble_warped_system() {
         rhs += element_rhs_[code >> 4].col((code >> 2) & 3);
       }
       rhs_.segment<3>(3 * node) = rhs;
-      // Jacobi preconditioner; a node in no tet has a zero diagonal and is left alone.
-      const Eigen::Vector3d d = block_value_[diag].diagonal();
-      inverse_diagonal_.segment<3>(3 * node) =
-          (d.array() > 0.0).select(d.cwiseInverse(), Eigen::Vector3d::Zero());
+      update_inverse_diagonal(node);
     }
   });
   loads_changed_ = false;
@@ -586,7 +662,9 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
           ku_held.noalias() += block_value_[k] * (n * n.dot(u_.segment<3>(3 * col)));
         }
       }
-      const Eigen::Vector3d b = rhs_.segment<3>(3 * node);
+      // An anchor: k u on the node's own (free) row, k (target − rest) on its rhs.
+      ku += anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node));
+      const Eigen::Vector3d b = rhs_.segment<3>(3 * node) + anchor_load_mn_.segment<3>(3 * node);
       Eigen::Vector3d r = b - ku;
       Eigen::Vector3d free_rhs = b - ku_held;
       const bool slides = sliding_.slides(node);
@@ -632,6 +710,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
           kp.noalias() += block_value_[k].lazyProduct(p_.segment<3>(3 * block_col_[k]));
         }
+        kp += anchor_stiffness_.segment<3>(3 * node).cwiseProduct(p_.segment<3>(3 * node));
         if (sliding_.slides(node)) sliding_.project(node, kp);
         q_.segment<3>(3 * node) = kp;
         pq += p_.segment<3>(3 * node).dot(kp);

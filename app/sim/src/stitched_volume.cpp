@@ -28,6 +28,8 @@ double one_piece_inverted_fraction(EngineKind method, const EngineSettings& sett
   switch (method) {
     case EngineKind::kPcgFem:
       return settings.fem.max_inverted_fraction;
+    case EngineKind::kCorotationalFem:
+      return settings.corotational.max_inverted_fraction;
     case EngineKind::kMsdsExplicit:
     case EngineKind::kMsdsImplicit:
       return settings.msds.max_inverted_fraction;
@@ -39,8 +41,8 @@ double one_piece_inverted_fraction(EngineKind method, const EngineSettings& sett
 }  // namespace
 
 bool stitchable(EngineKind method) {
-  return method == EngineKind::kPcgFem || method == EngineKind::kMsdsExplicit ||
-         method == EngineKind::kMsdsImplicit;
+  return method == EngineKind::kPcgFem || method == EngineKind::kCorotationalFem ||
+         method == EngineKind::kMsdsExplicit || method == EngineKind::kMsdsImplicit;
 }
 
 StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
@@ -72,8 +74,9 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   if (stitching.extra_sub_volumes_per_frame < 0) {
     throw std::invalid_argument("StitchedVolume: extra_sub_volumes_per_frame must be >= 0");
   }
-  if (stitching.exchanges_per_frame < 1) {
-    throw std::invalid_argument("StitchedVolume: exchanges_per_frame must be >= 1");
+  if (stitching.exchanges_per_frame < 1 || stitching.corotational_exchanges_per_frame < 1) {
+    throw std::invalid_argument(
+        "StitchedVolume: exchanges_per_frame and corotational_exchanges_per_frame must be >= 1");
   }
   if (stitching.msds_exchanges_per_frame < 1 ||
       engine_settings.msds.steps_per_frame % stitching.msds_exchanges_per_frame != 0) {
@@ -83,7 +86,10 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
                                 std::to_string(engine_settings.msds.steps_per_frame) + ")");
   }
   const bool msds = method == EngineKind::kMsdsExplicit || method == EngineKind::kMsdsImplicit;
-  exchanges_per_frame_ = msds ? stitching.msds_exchanges_per_frame : stitching.exchanges_per_frame;
+  exchanges_per_frame_ = msds ? stitching.msds_exchanges_per_frame
+                         : method == EngineKind::kCorotationalFem
+                             ? stitching.corotational_exchanges_per_frame
+                             : stitching.exchanges_per_frame;
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   max_inverted_tets_ = static_cast<int>(one_piece_inverted_fraction(method, engine_settings) *
                                         static_cast<double>(mesh_.tet_count()));
@@ -185,6 +191,8 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
         std::max(1, settings.msds.implicit_steps_per_frame / parts);
     settings.fem.pcg_iterations_per_frame =
         std::max(1, settings.fem.pcg_iterations_per_frame / parts);
+    settings.corotational.pcg_iterations_per_frame =
+        std::max(1, settings.corotational.pcg_iterations_per_frame / parts);
     for (double* fraction :
          {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
           &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {

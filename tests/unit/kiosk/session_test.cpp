@@ -316,6 +316,26 @@ TEST_F(StitchedSessionTest, StitchableMethodsRunStitchedAndMatchOnePiece) {
   EXPECT_TRUE(stitched.update(pose_at(2.0)).stitch.has_value());
 }
 
+// The corotational FEM takes anchor springs too: it runs stitched, switched to live.
+TEST_F(StitchedSessionTest, TheCorotationalFemRunsStitchedAndMatchesOnePiece) {
+  EXPECT_TRUE(method_runs_on(stitched_, sim::EngineKind::kCorotationalFem));
+  settings_.sim.method = sim::EngineKind::kCorotationalFem;
+  Session stitched(stitched_, settings_, clock_, jobs_);
+  Session one_piece(one_piece_, settings_, clock_, jobs_);
+  EXPECT_EQ(stitched.method_name(), "stitched corotational FEM (3 sub-volumes)");
+  for (int f = 0; f < 60; ++f) {
+    stitched.update(pose_at(std::min(2.0, 0.2 * f)));
+    one_piece.update(pose_at(std::min(2.0, 0.2 * f)));
+  }
+  const FrameOutcome outcome = stitched.update(pose_at(2.0));
+  one_piece.update(pose_at(2.0));
+  ASSERT_TRUE(outcome.stitch.has_value());
+  EXPECT_TRUE(outcome.in_contact);
+  EXPECT_LT(outcome.stitch->max_gap_mm, 0.2);
+  EXPECT_NEAR(largest_displacement(stitched), largest_displacement(one_piece),
+              0.02 * largest_displacement(one_piece));
+}
+
 TEST_F(StitchedSessionTest, APastDeadlineStepsOnlyTheTouchedSubVolumes) {
   Session session(stitched_, settings_, clock_, jobs_);
   // At x = -14 mm the 16 mm face reaches the first sub-volume only; its neighbour is due but

@@ -109,8 +109,8 @@ TEST(CoarseCorrection, TheMsdsForcesAreTheRestStiffnessTimesASmallMove) {
 TEST(CoarseCorrection, AStitchedRegionRelaxesSeveralTimesFasterWithIt) {
   const Region r = make_region({32, 32, 6});
   hal::InlineJobSystem jobs;
-  for (const EngineKind method :
-       {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+  for (const EngineKind method : {EngineKind::kPcgFem, EngineKind::kCorotationalFem,
+                                  EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
     double left[2] = {0.0, 0.0};
     for (const bool coarse : {false, true}) {
       StitchingSettings stitching{.sub_volumes = {3, 3, 1}, .selective = false};

@@ -533,6 +533,76 @@ TEST(CorotationalFem, TheKeptAssemblyIsTheWarpedStiffnessOfTheRotationsTheTetsHo
   EXPECT_GT(fem.displacements_mm()[3 * corner + 2] - before.z(), 0.01);
 }
 
+// Volume stitching's interface. Anchors pulling the skin 0.01 mm up (small: the corotational
+// answer is then the linear one to ~1e-4) give the PCG FEM's answer with the same anchors; the
+// rest stiffness is LinearFem's; at the converged shape the tissue's forces balance the anchors'
+// pull on every free node; a correction moves free nodes only; a held node moves where it is put.
+TEST(CorotationalFem, TakesAnchorSpringsAndTheCorrectionsInterfaceAsThePcgFemDoes) {
+  Block b = make_block();
+  CorotationalSettings every_rotation = budget(20);
+  every_rotation.rotation_update_tolerance = 0.0;
+  CorotationalFem corot(b.mesh, b.materials, b.fixed, every_rotation);
+  LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{});
+  ASSERT_TRUE(corot.supports_anchor_springs());
+  std::vector<AnchorSpring> anchors;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    if (b.mesh.rest_positions_mm[n].z() == 0.0) {
+      anchors.push_back({n, b.mesh.rest_positions_mm[n] + Eigen::Vector3d(0, 0, 0.01), 500.0});
+    }
+  }
+  corot.set_anchor_springs(anchors);
+  linear.set_anchor_springs(anchors);
+  corot.step(nullptr, 1.0 / 30);
+  ASSERT_TRUE(corot.solve_to_convergence(1e-12, 50).converged);
+  linear.solve_to_tolerance(1e-12, 5000);
+  const double peak = max_nodal_norm(linear.displacements_mm());
+  ASSERT_GT(peak, 0.005);
+  EXPECT_LT(max_nodal_norm(corot.displacements_mm() - linear.displacements_mm()), 1e-3 * peak);
+
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rest_difference =
+      corot.rest_stiffness_mn_per_mm() - linear.stiffness();
+  EXPECT_LT(rest_difference.norm(), 1e-12 * linear.stiffness().norm());
+
+  Eigen::VectorXd tissue(3 * corot.node_count());
+  corot.tissue_forces_mn(tissue);
+  double largest_pull = 0.0, largest_imbalance = 0.0;
+  for (const AnchorSpring& a : anchors) {
+    if (b.fixed[a.node]) continue;
+    const Eigen::Vector3d pull =
+        a.stiffness_mn_per_mm * (a.target_mm - corot.deformed_positions_mm()[a.node]);
+    largest_pull = std::max(largest_pull, pull.norm());
+    largest_imbalance = std::max(largest_imbalance, (tissue.segment<3>(3 * a.node) + pull).norm());
+  }
+  ASSERT_GT(largest_pull, 0.1);
+  EXPECT_LT(largest_imbalance, 1e-6 * largest_pull);
+
+  // Without anchors it goes back to rest.
+  corot.set_anchor_springs({});
+  corot.step(nullptr, 1.0 / 30);
+  corot.solve_to_convergence(1e-12, 50);
+  EXPECT_LT(max_nodal_norm(corot.displacements_mm()), 1e-9);
+
+  const int fixed_node = node_at(b.mesh, {0, 0, 20}), free_node = node_at(b.mesh, {0, 0, 10});
+  ASSERT_TRUE(corot.holds_node(fixed_node));
+  ASSERT_FALSE(corot.holds_node(free_node));
+  corot.displace_free_nodes_mm(Eigen::VectorXd::Constant(3 * corot.node_count(), 0.1));
+  EXPECT_EQ(corot.displacements_mm().segment<3>(3 * fixed_node), Eigen::Vector3d::Zero());
+  EXPECT_EQ(corot.displacements_mm().segment<3>(3 * free_node), Eigen::Vector3d::Constant(0.1));
+  EXPECT_EQ(corot.deformed_positions_mm()[free_node],
+            b.mesh.rest_positions_mm[free_node] + Eigen::Vector3d::Constant(0.1));
+
+  const ProbeCollider probe = sphere_probe(2.0);
+  corot.step(&probe, 1.0 / 30);
+  const int top_centre = node_at(b.mesh, {0, 0, 0});
+  ASSERT_TRUE(corot.holds_node(top_centre));
+  const Eigen::Vector3d put =
+      corot.deformed_positions_mm()[top_centre] + Eigen::Vector3d(0.05, 0, 0);
+  corot.move_held_node_mm(top_centre, put);
+  EXPECT_EQ(corot.deformed_positions_mm()[top_centre], put);
+  corot.move_held_node_mm(free_node, Eigen::Vector3d::Zero());  // not held: left alone
+  EXPECT_NE(corot.deformed_positions_mm()[free_node], Eigen::Vector3d::Zero());
+}
+
 // Under the published stick contact the face's rounded rim folds a few tets as it drags the skin
 // along. Within max_inverted_fraction (the other engines' tolerance) those frames are accepted
 // whole and report their inverted tets; with no tolerance some of them are cut short, and the

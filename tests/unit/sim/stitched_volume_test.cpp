@@ -7,6 +7,7 @@
 
 #include <Eigen/SparseLU>
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <set>
 #include <utility>
@@ -14,6 +15,7 @@
 #include "slab_region.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 #include "ultrasim/hal/job_system.hpp"
+#include "ultrasim/sim/corotational_fem.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 #include "ultrasim/sim/msds.hpp"
@@ -286,6 +288,42 @@ TEST(StitchedVolume, PcgFemMatchesTheOnePieceSolutionAndTheSeamCloses) {
   }
 }
 
+// The corotational FEM stitched (anchors on its rows as the PCG FEM's) under a still probe
+// pressed beside the seam, both contacts: within 2 % of one piece after the same frames, the
+// seam closed. One piece is then solved to convergence (rotations and solves repeated with the
+// same contacts); the stitched region, stepped frame by frame, carries its rotations' one-frame
+// lag and its kept rotations.
+TEST(StitchedVolume, CorotationalFemMatchesTheOnePieceSolutionAndTheSeamCloses) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  for (EngineSettings engines :
+       {testing::stick_contact(),
+        ultrasim::testing::with_held_contact(HeldContactModel::kCoulombSlip, 0.0)}) {
+    const auto contact =
+        engines.corotational.contact.model == HeldContactModel::kStick ? "stick" : "slip";
+    SCOPED_TRACE(contact);
+    engines.corotational.pcg_iterations_per_frame = 40;
+    StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, engines,
+                            StitchingSettings{.sub_volumes = {2, 1, 1}, .selective = false}, &jobs);
+    CorotationalFem one_piece(r.mesh, r.materials, r.fixed, engines.corotational);
+    const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, 2.0);
+    for (int f = 0; f < 400; ++f) {
+      stitched.step(&probe, 1.0 / 60);
+      one_piece.step(&probe, 1.0 / 60);
+    }
+    ASSERT_TRUE(one_piece.solve_to_convergence(1e-9, 50).converged);
+    const double peak = max_norm(one_piece.displacements_mm());
+    ASSERT_GT(peak, 1.5);
+    const double error = max_difference(stitched.displacements_mm(), one_piece.displacements_mm());
+    EXPECT_LT(error, 0.02 * peak) << "error " << error << " mm of " << peak;
+    EXPECT_LT(stitched.last_stitch_stats().max_gap_mm, 0.1);
+    EXPECT_GT(stitched.last_stitch_stats().max_seam_force_mn, 0.0);
+    EXPECT_EQ(stitched.name(), "stitched corotational FEM (2 sub-volumes)");
+    std::printf("%s: %.2f %% of one piece's %.2f mm, seam %.3f mm\n", contact, 100 * error / peak,
+                peak, stitched.last_stitch_stats().max_gap_mm);
+  }
+}
+
 // The frame the probe first presses on a seam: the copies it catches in both sub-volumes are
 // anchored to where the probe pushes their twins, not to where those were before the step, so
 // the touch-down frame reads about what the next does, as one piece's (anchored to the twins'
@@ -296,8 +334,8 @@ TEST(StitchedVolume, TouchingDownOnASeamReadsNoSpike) {
   const Region r = make_region({22, 10, 8});
   hal::InlineJobSystem jobs;
   const ProbeCollider probe = sphere_probe(kSeamXmm, 9.0, 1.0);
-  for (EngineKind kind :
-       {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+  for (EngineKind kind : {EngineKind::kPcgFem, EngineKind::kCorotationalFem,
+                          EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
     SCOPED_TRACE(engine_key(kind));
     StitchedVolume stitched(r.grid, r.materials, r.fixed, kind, EngineSettings{},
                             StitchingSettings{.sub_volumes = {2, 1, 1}, .selective = false}, &jobs);
@@ -411,6 +449,20 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   none.msds_exchanges_per_frame = 0;
   EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, none),
                std::invalid_argument);
+  StitchingSettings no_corotational{.sub_volumes = {2, 1, 1}};
+  no_corotational.corotational_exchanges_per_frame = 0;
+  EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
+                              no_corotational),
+               std::invalid_argument);
+  // Each method its own: the PCG FEM's two, the MSDS's and the corotational FEM's one.
+  for (const auto& [kind, exchanges] :
+       {std::pair{EngineKind::kPcgFem, 2}, std::pair{EngineKind::kCorotationalFem, 1},
+        std::pair{EngineKind::kMsdsExplicit, 1}}) {
+    EXPECT_EQ(StitchedVolume(r.grid, r.materials, r.fixed, kind, {}, {.sub_volumes = {2, 1, 1}})
+                  .exchanges_per_frame(),
+              exchanges)
+        << engine_key(kind);
+  }
 }
 
 // A 4 × 4 split of a small slab: the probe in one corner.

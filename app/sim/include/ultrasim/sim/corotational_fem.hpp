@@ -65,6 +65,22 @@ class CorotationalFem final : public DeformationEngine {
   // A contact that slides this frame (HeldContactSettings): its normal and friction.
   const SlidingHold* sliding_hold(int node) const override { return sliding_.hold(node); }
 
+  // Volume stitching (StitchedVolume), as the PCG FEM's: an anchor adds k I to its node's row of
+  // the system and k (target − rest) to its rhs (outside the warped blocks, so moving anchors
+  // re-sum nothing). The coarse and fine corrections: the rest stiffness (LinearFem's), the
+  // tissue's force Σ R K_e (x0 − Rᵀ x0) − K_R u with the rotations the tets hold, the held nodes
+  // (fixed, prescribed, on the probe), moves of the free ones (the sliding ones in their tangent
+  // planes) and of a held one.
+  bool supports_anchor_springs() const override { return true; }
+  void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override;
+  void tissue_forces_mn(Eigen::VectorXd& forces_mn) const override;
+  bool holds_node(int node) const override {
+    return fixed_[node] != 0 || prescribed_[node] != 0 || held_[node] != 0 || sliding_.slides(node);
+  }
+  void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
+  void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
+
   // One frame: contacts, rotations, assembly, pcg_iterations_per_frame CG iterations.
   // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
   // surface, are held at its push-out target; nodes it pushed on last frame stay on its surface
@@ -157,7 +173,7 @@ class CorotationalFem final : public DeformationEngine {
   // held along the probe's normal only; stop_sliding() forgets last frame's.
   void choose_sliding_nodes();
   void stop_sliding();
-  // K_R u − b at a node with the last assembly: the force holding it there, mN.
+  // K_R u − b at a node with the last assembly and the anchors: the force holding it there, mN.
   Eigen::Vector3d node_force_mn(int node) const;
   // Marks fixed, prescribed and contact nodes held and puts them at their displacements (a
   // sliding contact, as marked, keeps its own).
@@ -182,6 +198,8 @@ class CorotationalFem final : public DeformationEngine {
   // fills the stats.
   void accept_or_recover(EngineStepStats& stats);
   void update_deformed();
+  // The Jacobi preconditioner's entries at a node: its diagonal block's and its anchor's.
+  void update_inverse_diagonal(int node);
   struct InversionCount {
     int total = 0;
     int with_free_node = 0;  // the solver's doing; tets with all four nodes on the probe are not
@@ -239,6 +257,9 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<std::uint8_t> prescribed_;
   std::vector<Eigen::Vector3d> prescribed_u_;
   Eigen::VectorXd load_mn_;  // dead nodal loads, node-major
+  // Anchor springs (set_anchor_springs): per DOF k, and k (target − rest); the nodes that have one.
+  Eigen::VectorXd anchor_stiffness_, anchor_load_mn_;
+  std::vector<int> anchored_nodes_;
   std::vector<NodeContact> contacts_;
   std::vector<double> contact_push_mn_;  // per node: last frame's push along the probe's normal
   // The contacts that slide this frame; per node chunk, whether it holds one.

@@ -22,7 +22,8 @@
 
 namespace ultrasim::sim {
 
-// Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG FEM).
+// Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG and corotational
+// FEMs).
 bool stitchable(EngineKind method);
 
 // What a stitched frame did, beyond the engine's stats.
@@ -110,7 +111,8 @@ class StitchedVolume final : public DeformationEngine {
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
   const StitchStepStats& last_stitch_stats() const { return stats_; }
-  // This method's: StitchingSettings::exchanges_per_frame, or msds_exchanges_per_frame.
+  // This method's: StitchingSettings::exchanges_per_frame, msds_exchanges_per_frame or
+  // corotational_exchanges_per_frame.
   int exchanges_per_frame() const { return exchanges_per_frame_; }
   const geometry::TetMesh& mesh() const { return mesh_; }
   int sub_volume_count() const { return static_cast<int>(subs_.size()); }
