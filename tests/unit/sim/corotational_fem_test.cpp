@@ -259,8 +259,9 @@ TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhen
   for (int frame = 0; frame < 300; ++frame) lifted = fem.step(nullptr, 1.0 / 30);
   EXPECT_EQ(lifted.contact_nodes, 0);
   // A tet back within rotation_update_tolerance of rest keeps a rotation up to that far from
-  // the identity; K_e cancels an infinitesimal rotation, so what it leaves is second order.
-  EXPECT_LT(max_nodal_norm(fem.displacements_mm()), 1e-5);
+  // the identity; K_e cancels an infinitesimal rotation, so what it leaves is second order:
+  // 1.4e-6 mm at 1e-3 rad, 4e-4 mm at the default 1e-2.
+  EXPECT_LT(max_nodal_norm(fem.displacements_mm()), 1e-3);
 }
 
 // Compressed tissue follows a probe that lifts slowly: the contact holds while the probe is
