@@ -67,6 +67,7 @@ BENCHMARK(BM_KeptRotations)
     ->Args({1, 1})
     ->Args({10, 1})
     ->Args({1, 0})
+    ->Args({10, 0})
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);

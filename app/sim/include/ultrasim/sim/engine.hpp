@@ -112,9 +112,9 @@ class DeformationEngine {
   // Fixed nodes stay at zero whatever `u` says. `u` must have 3 × node count entries.
   virtual void set_displacements_mm(const Eigen::VectorXd& u_mm) = 0;
 
-  // Whether set_anchor_springs() works on this method: the MSDS and the PCG FEM add the springs
-  // to their systems; the exact FEM's factor, fixed at construction, cannot take them, nor do the
-  // corotational and hyperelastic solvers yet.
+  // Whether set_anchor_springs() works on this method: the MSDS and the PCG and corotational FEMs
+  // add the springs to their systems; the exact FEM's factor, fixed at construction, cannot take
+  // them, nor does the hyperelastic solver yet.
   virtual bool supports_anchor_springs() const { return false; }
   // Replaces the anchor springs, acting from the next step() on (none: an empty span). Nodes
   // strictly increasing, inside the mesh; targets finite; stiffness finite and ≥ 0. Anchors on

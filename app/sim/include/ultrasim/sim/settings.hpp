@@ -108,10 +108,10 @@ struct CorotationalSettings {
   // (radians, to first order) away from it: its polar decomposition and its share of the
   // assembly are skipped, its forces then turned by less than this. A tet that only stretched or
   // squeezed has not turned, and most of a mesh away from the probe barely moves from frame to
-  // frame. 0: every tet's rotation every frame. 1e-2 (0.6°): against every rotation exact, 0.4 %
-  // of the peak displacement under a held press, 0.2 % under a slide (the rotations' one-frame
-  // lag costs 1-6 %), and the stitched large case's touched sub-volumes fit the simulation's
-  // share (1e-3: 6.5 ms a frame against 4.3 ms; docs/accuracy.md, "Kept rotations").
+  // frame. 0: every tet's rotation every frame. 1e-2 (0.6°): against every rotation exact,
+  // 0.4-0.8 % of the peak displacement under a held press, 0.2-0.3 % under a slide (where the
+  // rotations' one-frame lag costs 1-6 %), and the stitched large case's touched sub-volumes fit
+  // the simulation's share (1e-3: 6.5 ms a frame against 4.3 ms; docs/accuracy.md).
   double rotation_update_tolerance = 1e-2;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
