@@ -73,6 +73,7 @@ bool ImageSequenceSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs t
       }
       next_ = 0;
     }
+    hal::TimestampUs captured_us = -1;
     if (settings_.frames_per_second > 0.0) {
       const hal::TimestampUs now = clock_.now_us();
       if (next_due_us_ < 0) next_due_us_ = now;
@@ -83,7 +84,10 @@ bool ImageSequenceSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs t
         return false;
       }
       if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
-      next_due_us_ += static_cast<hal::TimestampUs>(1e6 / settings_.frames_per_second);
+      // Stamped at its slot, as a camera stamps its exposure; a frame served late moves the
+      // schedule on, so the ones after it keep the rate instead of coming in a burst.
+      captured_us = std::max(next_due_us_, clock_.now_us());
+      next_due_us_ = captured_us + static_cast<hal::TimestampUs>(1e6 / settings_.frames_per_second);
     }
     const std::filesystem::path& file = files_[next_++];
     const cv::Mat grey = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
@@ -92,7 +96,7 @@ bool ImageSequenceSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs t
       status_ = file.string() + ": cannot be read as an image (skipped)";
       continue;
     }
-    frame.timestamp_us = clock_.now_us();
+    frame.timestamp_us = captured_us >= 0 ? captured_us : clock_.now_us();
     frame.sequence = sequence_++;
     detail::copy_grey(grey, frame);
     return true;
