@@ -20,7 +20,8 @@ TEST(StitchingAllocation, AStitchedFrameDoesNotAllocateOnceWarmedUp) {
   std::vector<std::uint8_t> fixed(mesh.rest_positions_mm.size(), 0);
   for (std::size_t n = 0; n < fixed.size(); ++n) fixed[n] = mesh.rest_positions_mm[n].z() == 8.0;
   hal::InlineJobSystem jobs;
-  for (auto method : {EngineKind::kPcgFem, EngineKind::kMsdsExplicit, EngineKind::kMsdsImplicit}) {
+  for (auto method : {EngineKind::kPcgFem, EngineKind::kCorotationalFem, EngineKind::kMsdsExplicit,
+                      EngineKind::kMsdsImplicit}) {
     for (bool selective : {true, false}) {
       for (int correction : {0, 1, 2}) {  // none, coarse, fine
         StitchingSettings stitching;
