@@ -207,7 +207,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     if (!sub.engine->supports_anchor_springs()) {
       throw std::invalid_argument("StitchedVolume: " + std::string(sub.engine->name()) +
                                   " cannot be stitched (it takes no anchor springs); use pcg, "
-                                  "msds-explicit or msds-implicit");
+                                  "corotational, msds-explicit or msds-implicit");
     }
     sub.previous_positions_mm = mesh.rest_positions_mm;
     sub.revert_mm = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh.node_count()));

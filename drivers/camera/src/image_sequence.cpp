@@ -84,10 +84,14 @@ bool ImageSequenceSource::next_frame(hal::CameraFrame& frame, hal::TimestampUs t
         return false;
       }
       if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
-      // Stamped at its slot, as a camera stamps its exposure; a frame served late moves the
-      // schedule on, so the ones after it keep the rate instead of coming in a burst.
-      captured_us = std::max(next_due_us_, clock_.now_us());
-      next_due_us_ = captured_us + static_cast<hal::TimestampUs>(1e6 / settings_.frames_per_second);
+      // Stamped at its slot, as a camera stamps its exposure (a sleep's oversleep does not slow
+      // the rate); a frame served more than half a period late starts the schedule again from
+      // now, so the ones after it keep the rate instead of coming in a burst to catch up.
+      const auto period_us = static_cast<hal::TimestampUs>(1e6 / settings_.frames_per_second);
+      const hal::TimestampUs served_us = clock_.now_us();
+      if (served_us - next_due_us_ > period_us / 2) next_due_us_ = served_us;
+      captured_us = next_due_us_;
+      next_due_us_ += period_us;
     }
     const std::filesystem::path& file = files_[next_++];
     const cv::Mat grey = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);

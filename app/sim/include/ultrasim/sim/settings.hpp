@@ -111,7 +111,8 @@ struct CorotationalSettings {
   // frame. 0: every tet's rotation every frame. 1e-2 (0.6°): against every rotation exact,
   // 0.4-0.8 % of the peak displacement under a held press, 0.2-0.3 % under a slide (where the
   // rotations' one-frame lag costs 1-6 %), and the stitched large case's touched sub-volumes fit
-  // the simulation's share (1e-3: 6.5 ms a frame against 4.3 ms; docs/accuracy.md).
+  // the simulation's share (1e-3: 6.5 ms a frame against 4.3 ms; docs/accuracy.md, "Kept
+  // rotations", docs/benchmarks.md).
   double rotation_update_tolerance = 1e-2;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
@@ -209,8 +210,8 @@ struct StitchingSettings {
   // ms; docs/accuracy.md).
   int msds_exchanges_per_frame = 1;
   // The same for the corotational FEM. One: each part extracts its tets' rotations and sums its
-  // blocks again before its CG, so two parts doubled that work (large case, sweep-press:
-  // simulation p50 11.1 against 6.1 ms; widest seam 0.067 against 0.078 mm).
+  // blocks again before its CG, so two parts doubled that work (large case, sweep-press, 1e-3
+  // rad: simulation p50 11.1 against 6.5-6.9 ms; widest seam 0.067 against 0.078 mm).
   int corotational_exchanges_per_frame = 1;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,

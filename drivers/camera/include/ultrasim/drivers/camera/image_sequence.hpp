@@ -32,7 +32,8 @@ class ImageSequenceSource final : public hal::FrameSource {
 
   // Decodes the next image (allocates). Paced: waits (sleeping) until the frame is due when
   // frames_per_second > 0, at most timeout_us, and stamps it with its slot on the schedule; a
-  // frame asked for late is served at once and the schedule moves on from it (no catching up).
+  // frame asked for more than half a period late is served at once and the schedule starts
+  // again from it (no catching up).
   bool next_frame(hal::CameraFrame& frame, hal::TimestampUs timeout_us) override;
   hal::FrameSourceHealth health() const override { return health_; }
   std::string_view status() const override { return status_; }
