@@ -90,19 +90,28 @@ Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
 }
 
 // How far, in radians to first order, the rotation of f has turned from r. With f = r S and S
-// symmetric, r is exactly f's polar rotation, however S changed: a tet that only stretched or
-// squeezed more keeps its rotation. A turn by θ about an axis adds θ times the mean of the other
-// two stretches to the skew part of rᵀ f: its axial vector over the mean stretch is θ where the
-// stretch is near isotropic. Infinite (extract again) for an inverted or collapsed f.
+// symmetric positive definite, r is exactly f's polar rotation, however S changed: a tet that only
+// stretched or squeezed more keeps its rotation. A small turn by θ about axis k adds θ (s_i + s_j)
+// to component k of the axial vector of rᵀ f (s_i, s_j: the stretches along the other two axes,
+// the diagonal of its symmetric part), so each component over its pair of stretches is that
+// component of the turn, however unequal the stretches. Infinite (extract again) for an inverted
+// or collapsed f, or one whose symmetric part in r's frame is not positive definite (r is then
+// not its rotation at all: a half turn away, say).
 double rotation_drift(const Eigen::Matrix3d& r, const Eigen::Matrix3d& f) {
   constexpr double kCollapsedStretch = 0.1;
   const Eigen::Matrix3d s = r.transpose() * f;
-  const double mean_stretch = s.trace() / 3.0;
-  if (!(mean_stretch > kCollapsedStretch) || !(f.determinant() > 0.0)) {
+  const Eigen::Matrix3d symmetric = 0.5 * (s + s.transpose());
+  // Positive definite (the leading minors), each stretch above collapse, f not inverted.
+  const double minor2 = symmetric(0, 0) * symmetric(1, 1) - symmetric(0, 1) * symmetric(1, 0);
+  if (!(symmetric.diagonal().minCoeff() > kCollapsedStretch) || !(minor2 > 0.0) ||
+      !(symmetric.determinant() > 0.0) || !(f.determinant() > 0.0)) {
     return std::numeric_limits<double>::infinity();
   }
-  const Eigen::Vector3d axial(s(2, 1) - s(1, 2), s(0, 2) - s(2, 0), s(1, 0) - s(0, 1));
-  return 0.5 * axial.norm() / mean_stretch;
+  const Eigen::Vector3d d = symmetric.diagonal();
+  const Eigen::Vector3d turn((s(2, 1) - s(1, 2)) / (d[1] + d[2]),
+                             (s(0, 2) - s(2, 0)) / (d[0] + d[2]),
+                             (s(1, 0) - s(0, 1)) / (d[0] + d[1]));
+  return turn.norm();
 }
 
 // x_b − x_0 of tet `tet` for a node-major displacement vector on top of rest positions.
@@ -364,12 +373,15 @@ void CorotationalFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   for (int node = 0; node < node_count(); ++node) {
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
   }
-  // The contacts and the rotations belonged to the old shape; the next step finds them on this
-  // one, every rotation extracted anew.
+  // The contacts and the rotations belonged to the old shape: the next step finds the contacts on
+  // this one, and every rotation is extracted from it now (so that the corrections' forces and
+  // held nodes, asked for before that step, are this shape's).
   contacts_.clear();
-  extract_every_rotation_ = true;
   stop_sliding();
+  for (int node = 0; node < node_count(); ++node) held_[node] = fixed_[node] || prescribed_[node];
   std::fill(contact_push_mn_.begin(), contact_push_mn_.end(), 0.0);
+  update_rotations(0.0);
+  assemble_warped_system();
   update_deformed();
 }
 
@@ -503,13 +515,20 @@ Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::rest_stiffness_mn_
 }
 
 void CorotationalFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
-  // rhs_ − loads is Σ R K_e (x0 − Rᵀ x0): with −K_R u, the tets' pull at the current shape.
+  // Σ R K_e (x0 − Rᵀ x0) − K_R u: the tets' pull at the current shape with the rotations they
+  // hold (the element terms summed here, not taken from rhs_, which holds the loads of the last
+  // assembly).
   for (int node = 0; node < node_count(); ++node) {
-    Eigen::Vector3d ku = Eigen::Vector3d::Zero();
-    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-      ku.noalias() += block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+    Eigen::Vector3d f = Eigen::Vector3d::Zero();
+    const int diag = diagonal_block_[node];
+    for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
+      const int code = contribution_[c];
+      f += element_rhs_[code >> 4].col((code >> 2) & 3);
     }
-    forces_mn.segment<3>(3 * node) = rhs_.segment<3>(3 * node) - load_mn_.segment<3>(3 * node) - ku;
+    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+      f.noalias() -= block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+    }
+    forces_mn.segment<3>(3 * node) = f;
   }
 }
 
@@ -547,8 +566,6 @@ void CorotationalFem::hold_constrained_nodes() {
 }
 
 void CorotationalFem::update_rotations(double tolerance) {
-  if (extract_every_rotation_) tolerance = 0.0;
-  extract_every_rotation_ = false;
   const int chunks = tet_chunks();
   for_each_chunk(chunks, [&](int chunk) {
     const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);

@@ -238,11 +238,17 @@ TEST(CorotationalFem, SmallPressAgreesWithConvergedLinearFemAndTheGapShrinksWith
 TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhenLifted) {
   Block b = make_block();
   CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
+  CorotationalSettings every_rotation = budget(20);
+  every_rotation.rotation_update_tolerance = 0.0;
+  CorotationalFem exact(b.mesh, b.materials, b.fixed, every_rotation);
   double last_force = 0.0;
   for (double depth : {1.0, 2.0, 3.0, 4.0}) {
     const ProbeCollider probe = sphere_probe(depth);
     EngineStepStats stats;
-    for (int frame = 0; frame < 30; ++frame) stats = fem.step(&probe, 1.0 / 30);
+    for (int frame = 0; frame < 30; ++frame) {
+      stats = fem.step(&probe, 1.0 / 30);
+      exact.step(&probe, 1.0 / 30);
+    }
     EXPECT_GT(stats.contact_nodes, 0);
     EXPECT_GT(stats.contact_force_n, last_force);
     EXPECT_FALSE(stats.diverged);
@@ -256,8 +262,12 @@ TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhen
   ASSERT_GE(top_centre, 0);
   EXPECT_NEAR(fem.displacements_mm()[3 * top_centre + 2], 4.0, 1e-9);
   EngineStepStats lifted;
-  for (int frame = 0; frame < 300; ++frame) lifted = fem.step(nullptr, 1.0 / 30);
+  for (int frame = 0; frame < 300; ++frame) {
+    lifted = fem.step(nullptr, 1.0 / 30);
+    exact.step(nullptr, 1.0 / 30);
+  }
   EXPECT_EQ(lifted.contact_nodes, 0);
+  EXPECT_LT(max_nodal_norm(exact.displacements_mm()), 1e-6);  // every rotation: back to rest
   // A tet back within rotation_update_tolerance of rest keeps a rotation up to that far from
   // the identity; K_e cancels an infinitesimal rotation, so what it leaves is second order:
   // 1.4e-6 mm at 1e-3 rad, 4e-4 mm at the default 1e-2.
@@ -740,12 +750,21 @@ TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
 
   // Handed over to an engine whose rotations were kept from another shape (rest), every
-  // rotation is extracted from the new one.
+  // rotation is extracted from the new one at once, and it holds no node the old shape's
+  // contacts held.
   CorotationalFem lazy(b.mesh, b.materials, b.fixed, budget(20));
-  lazy.step(nullptr, 1.0 / 30);
+  for (int frame = 0; frame < 5; ++frame) lazy.step(&probe, 1.0 / 30);
+  const int top_centre = node_at(b.mesh, {0, 0, 0});
+  ASSERT_TRUE(lazy.holds_node(top_centre));
+  lazy.set_displacements_mm(Eigen::VectorXd::Zero(3 * lazy.node_count()));
+  EXPECT_FALSE(lazy.holds_node(top_centre));
   lazy.set_displacements_mm(handed_over);
-  lazy.step(&probe, 1.0 / 30);
   EXPECT_EQ(lazy.rotations_updated(), lazy.tet_count());
+  Eigen::VectorXd forces(3 * lazy.node_count()), want;
+  lazy.tissue_forces_mn(forces);
+  lazy.elastic_forces_mn(lazy.deformed_positions_mm(), want);
+  EXPECT_LT((forces + want).cwiseAbs().maxCoeff(), 1e-9 * want.cwiseAbs().maxCoeff())
+      << "the corrections read the new shape's forces";
 
   EXPECT_THROW(second.set_displacements_mm(Eigen::VectorXd::Zero(5)), std::invalid_argument);
   Eigen::VectorXd with_nan = first.displacements_mm();

@@ -883,7 +883,7 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
     SCOPED_TRACE(out_of_time ? "no time for smaller steps" : "unbudgeted");
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit,
                             EngineSettings{}, StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
-    int refused = 0, substepped = 0;
+    int refused = 0;
     Eigen::VectorXd before = stitched.displacements_mm();
     for (int f = 0; f < 40; ++f) {
       const ProbeCollider probe = sphere_probe(kSeamXmm - 5.0, 9.0, 0.5 * (f + 1), 6.0);
@@ -892,14 +892,8 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
                                     : stitched.step(&probe, 1.0 / 60);
       ASSERT_NE(s.recovery, Recovery::kReset) << "frame " << f;
       ASSERT_TRUE(stitched.displacements_mm().allFinite());
-      // Every diverged frame says why, the ones taken in smaller steps too.
+      // Every diverged frame says why (the ones taken in smaller steps: the test below).
       EXPECT_EQ(s.diverged, s.cause != DivergenceCause::kNone) << "frame " << f;
-      if (s.recovery == Recovery::kSubstepped) {
-        ++substepped;
-        EXPECT_TRUE(s.cause == DivergenceCause::kInverted || s.cause == DivergenceCause::kRunaway ||
-                    s.cause == DivergenceCause::kEnergy)
-            << cause_key(s.cause);
-      }
       if (s.recovery == Recovery::kKeptLastGood) {
         ++refused;
         EXPECT_TRUE(s.diverged);

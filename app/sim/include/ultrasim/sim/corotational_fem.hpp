@@ -105,7 +105,8 @@ class CorotationalFem final : public DeformationEngine {
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
 
-  // Live switch. Fixed nodes stay at zero; the next step extracts every tet's rotation. Throws
+  // Live switch. Fixed nodes stay at zero; every tet's rotation is extracted from the new shape
+  // and the system assembled (as costly as a step's rotations at tolerance 0). Throws
   // std::invalid_argument when u_mm does not have 3 × node count entries or holds a non-finite
   // value.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
@@ -245,7 +246,6 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<Eigen::Matrix3d> rotation_;                       // per tet
   std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
   std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
-  bool extract_every_rotation_ = false;       // at the next update, whatever the tolerance
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
   std::vector<std::uint8_t> block_moved_;     // per block on or above the diagonal: summed again
   std::vector<std::uint8_t> node_moved_;      // per node: held by a tet whose rotation moved
