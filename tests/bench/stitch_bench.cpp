@@ -5,10 +5,11 @@
 //   - Tables 5.2/5.3: 1, 4, 9, 16, 25 sub-volumes of 12³ or 15³, with and without selective
 //     simulation.
 // Methods: the published PCG FEM (20 iterations) and MSDS (explicit Euler, 20 steps a frame),
-// and the implicit MSDS. Counters: sub-volumes stepped a frame, the largest frame (the target
-// is every frame inside 16.7 ms at 25 × 15³ on 2 threads), the seam gap. After the runs, a
-// summary of medians with ratios: stitched over one piece (5.1), selective over all (5.2/5.3),
-// and the coarse correction on over off (25 sub-volumes, selective, 2 threads).
+// the implicit MSDS and the corotational FEM (20 iterations; stitched since 2026-11-27). Counters:
+// sub-volumes stepped a frame, the largest frame (the target is every frame inside 16.7 ms at 25 ×
+// 15³ on 2 threads), the seam gap. After the runs, a summary of medians with ratios: stitched over
+// one piece (5.1), selective over all (5.2/5.3), and the coarse correction on over off (25
+// sub-volumes, selective, 2 threads).
 //   build/ci/tests/bench/stitch_bench [--benchmark_filter=...]
 
 #include <benchmark/benchmark.h>
@@ -130,6 +131,7 @@ void BM_StitchedCorrection(benchmark::State& state) {
 }
 
 constexpr int kMethods[] = {static_cast<int>(sim::EngineKind::kPcgFem),
+                            static_cast<int>(sim::EngineKind::kCorotationalFem),
                             static_cast<int>(sim::EngineKind::kMsdsExplicit),
                             static_cast<int>(sim::EngineKind::kMsdsImplicit)};
 
@@ -158,7 +160,7 @@ BENCHMARK(BM_OnePiece)->Apply(one_piece_args)->Unit(benchmark::kMillisecond)->It
 BENCHMARK(BM_Stitched)->Apply(stitched_args)->Unit(benchmark::kMillisecond)->Iterations(60);
 BENCHMARK(BM_StitchedCorrection)
     ->ArgNames({"method", "sub_nodes", "correction"})
-    ->ArgsProduct({{kMethods[0], kMethods[1], kMethods[2]}, {12, 15}, {0, 1, 2}})
+    ->ArgsProduct({{kMethods[0], kMethods[1], kMethods[2], kMethods[3]}, {12, 15}, {0, 1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(60);
 
