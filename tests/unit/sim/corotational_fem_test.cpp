@@ -749,22 +749,24 @@ TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   second.step(&probe, 1.0 / 30);
   EXPECT_TRUE(second.displacements_mm() == first.displacements_mm());
 
-  // Handed over to an engine whose rotations were kept from another shape (rest), every
-  // rotation is extracted from the new one at once, and it holds no node the old shape's
-  // contacts held.
+  // Handed over to an engine whose rotations were kept from another shape (rest): it holds no
+  // node the old shape's contacts held, and its next step extracts the rotations of the tets
+  // that shape has turned, and only those (most of the block's tets turn under this press).
   CorotationalFem lazy(b.mesh, b.materials, b.fixed, budget(20));
   for (int frame = 0; frame < 5; ++frame) lazy.step(&probe, 1.0 / 30);
   const int top_centre = node_at(b.mesh, {0, 0, 0});
   ASSERT_TRUE(lazy.holds_node(top_centre));
   lazy.set_displacements_mm(Eigen::VectorXd::Zero(3 * lazy.node_count()));
   EXPECT_FALSE(lazy.holds_node(top_centre));
+  lazy.step(nullptr, 1.0 / 30);  // back at rest, every tet's rotation with it
   lazy.set_displacements_mm(handed_over);
-  EXPECT_EQ(lazy.rotations_updated(), lazy.tet_count());
-  Eigen::VectorXd forces(3 * lazy.node_count()), want;
-  lazy.tissue_forces_mn(forces);
-  lazy.elastic_forces_mn(lazy.deformed_positions_mm(), want);
-  EXPECT_LT((forces + want).cwiseAbs().maxCoeff(), 1e-9 * want.cwiseAbs().maxCoeff())
-      << "the corrections read the new shape's forces";
+  lazy.step(&probe, 1.0 / 30);
+  EXPECT_GT(lazy.rotations_updated(), lazy.tet_count() / 2);
+  EXPECT_LT(lazy.rotations_updated(), lazy.tet_count());
+  // The kept rotations are within the tolerance of every one extracted from the same shape.
+  for (int t = 0; t < lazy.tet_count(); ++t) {
+    EXPECT_LT((lazy.tet_rotation(t) - second.tet_rotation(t)).norm(), 0.05) << "tet " << t;
+  }
 
   EXPECT_THROW(second.set_displacements_mm(Eigen::VectorXd::Zero(5)), std::invalid_argument);
   Eigen::VectorXd with_nan = first.displacements_mm();

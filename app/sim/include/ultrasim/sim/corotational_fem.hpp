@@ -105,8 +105,8 @@ class CorotationalFem final : public DeformationEngine {
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
   std::span<const Eigen::Vector3d> deformed_positions_mm() const override { return deformed_; }
 
-  // Live switch. Fixed nodes stay at zero; every tet's rotation is extracted from the new shape
-  // and the system assembled (as costly as a step's rotations at tolerance 0). Throws
+  // Live switch. Fixed nodes stay at zero; the old contacts are let go; the rotations are kept
+  // (the next step extracts those the new shape has turned by the tolerance). Throws
   // std::invalid_argument when u_mm does not have 3 × node count entries or holds a non-finite
   // value.
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
