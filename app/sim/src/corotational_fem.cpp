@@ -460,12 +460,38 @@ void CorotationalFem::let_go_of_followers_that_would_pull(int first_follower) {
   contacts_.resize(kept);  // shrinking: no allocation
 }
 
-Eigen::Vector3d CorotationalFem::node_force_mn(int node) const {
-  Eigen::Vector3d ku = Eigen::Vector3d::Zero();
+Eigen::Vector3d CorotationalFem::warped_row_times(int node, const Eigen::VectorXd& v) const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-    ku.noalias() += block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
+    sum.noalias() += block_value_[k].lazyProduct(v.segment<3>(3 * block_col_[k]));
   }
-  return ku + anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node)) -
+  return sum;
+}
+
+Eigen::Vector3d CorotationalFem::add_element_forces(int node, Eigen::Vector3d sum) const {
+  // The diagonal block's contributions are exactly the tets holding the node, one each.
+  const int diag = diagonal_block_[node];
+  for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
+    const int code = contribution_[c];
+    sum += element_rhs_[code >> 4].col((code >> 2) & 3);
+  }
+  return sum;
+}
+
+Eigen::Matrix3d CorotationalFem::summed_block(
+    int k, const std::vector<Eigen::Matrix<double, 3, 4>>& gradients) const {
+  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+  for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
+    const int code = contribution_[c];
+    const int t = code >> 4, a = (code >> 2) & 3, b = code & 3;
+    sum += stiffness_block(gradients[t].col(a), gradients[t].col(b), lame_volume_[t]);
+  }
+  return sum;
+}
+
+Eigen::Vector3d CorotationalFem::node_force_mn(int node) const {
+  return warped_row_times(node, u_) +
+         anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node)) -
          anchor_load_mn_.segment<3>(3 * node) - rhs_.segment<3>(3 * node);
 }
 
@@ -495,24 +521,15 @@ void CorotationalFem::set_anchor_springs(std::span<const AnchorSpring> anchors) 
 }
 
 Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::rest_stiffness_mn_per_mm() const {
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(tets_.size() * 16 * 9);
-  for (int t = 0; t < tet_count(); ++t) {
-    const auto& g = shape_gradients_[t];
-    for (int a = 0; a < 4; ++a) {
-      for (int b = 0; b < 4; ++b) {
-        const Eigen::Matrix3d k = stiffness_block(g.col(a), g.col(b), lame_volume_[t]);
-        for (int i = 0; i < 3; ++i) {
-          for (int j = 0; j < 3; ++j) {
-            triplets.emplace_back(3 * tets_[t][a] + i, 3 * tets_[t][b] + j, k(i, j));
-          }
-        }
-      }
-    }
+  // The warped stiffness's blocks with every rotation the identity.
+  std::vector<Eigen::Matrix3d> blocks(block_col_.size());
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    if (mirror_block_[k] < 0) blocks[k] = summed_block(static_cast<int>(k), shape_gradients_);
   }
-  Eigen::SparseMatrix<double, Eigen::RowMajor> k(3 * node_count(), 3 * node_count());
-  k.setFromTriplets(triplets.begin(), triplets.end());
-  return k;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    if (mirror_block_[k] >= 0) blocks[k] = blocks[mirror_block_[k]].transpose();
+  }
+  return node_blocks_as_matrix(blocks);
 }
 
 void CorotationalFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
@@ -520,29 +537,13 @@ void CorotationalFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
   // hold (the element terms summed here, not taken from rhs_, which holds the loads of the last
   // assembly).
   for (int node = 0; node < node_count(); ++node) {
-    Eigen::Vector3d f = Eigen::Vector3d::Zero();
-    const int diag = diagonal_block_[node];
-    for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
-      const int code = contribution_[c];
-      f += element_rhs_[code >> 4].col((code >> 2) & 3);
-    }
-    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-      f.noalias() -= block_value_[k].lazyProduct(u_.segment<3>(3 * block_col_[k]));
-    }
-    forces_mn.segment<3>(3 * node) = f;
+    forces_mn.segment<3>(3 * node) =
+        add_element_forces(node, Eigen::Vector3d::Zero()) - warped_row_times(node, u_);
   }
 }
 
 void CorotationalFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
-  for (int node = 0; node < node_count(); ++node) {
-    if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
-  }
-  for (int node : sliding_.nodes()) {
-    if (prescribed_[node]) continue;  // prescribed since the step: it stays where it was put
-    Eigen::Vector3d du = du_mm.segment<3>(3 * node);
-    sliding_.project(node, du);
-    u_.segment<3>(3 * node) += du;
-  }
+  displace_free_and_sliding_nodes(*this, sliding_, prescribed_, du_mm, u_);
   update_deformed();
 }
 
@@ -610,23 +611,10 @@ void CorotationalFem::assemble_warped_system() {
         block_moved_[k] =
             node_moved_[node] && std::any_of(contributions + contribution_start_[k],
                                              contributions + contribution_start_[k + 1], moved);
-        if (!block_moved_[k]) continue;  // every tet in it kept its rotation
-        Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-        for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
-          const int code = contribution_[c];
-          const int t = code >> 4, a = (code >> 2) & 3, b = code & 3;
-          const auto& h = rotated_gradients_[t];
-          sum += stiffness_block(h.col(a), h.col(b), lame_volume_[t]);  // = R K_ab Rᵀ
-        }
-        block_value_[k] = sum;
+        if (!block_moved_[k]) continue;                         // every tet in it kept its rotation
+        block_value_[k] = summed_block(k, rotated_gradients_);  // Σ R K_ab Rᵀ
       }
-      // rhs: the element rhs of every tet holding this node plus the external load.
-      Eigen::Vector3d rhs = load_mn_.segment<3>(3 * node);
-      for (int c = contribution_start_[diag]; c < contribution_start_[diag + 1]; ++c) {
-        const int code = contribution_[c];
-        rhs += element_rhs_[code >> 4].col((code >> 2) & 3);
-      }
-      rhs_.segment<3>(3 * node) = rhs;
+      rhs_.segment<3>(3 * node) = add_element_forces(node, load_mn_.segment<3>(3 * node));
       update_inverse_diagonal(node);
     }
   });
@@ -724,10 +712,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
           q_.segment<3>(3 * node).setZero();
           continue;
         }
-        Eigen::Vector3d kp = Eigen::Vector3d::Zero();
-        for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-          kp.noalias() += block_value_[k].lazyProduct(p_.segment<3>(3 * block_col_[k]));
-        }
+        Eigen::Vector3d kp = warped_row_times(node, p_);
         kp += anchor_stiffness_.segment<3>(3 * node).cwiseProduct(p_.segment<3>(3 * node));
         if (sliding_.slides(node)) sliding_.project(node, kp);
         q_.segment<3>(3 * node) = kp;
@@ -947,13 +932,18 @@ void CorotationalFem::elastic_forces_mn(std::span<const Eigen::Vector3d> positio
 }
 
 Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::warped_stiffness() const {
+  return node_blocks_as_matrix(block_value_);
+}
+
+Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::node_blocks_as_matrix(
+    const std::vector<Eigen::Matrix3d>& blocks) const {
   std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(block_value_.size() * 9);
+  triplets.reserve(blocks.size() * 9);
   for (int node = 0; node < node_count(); ++node) {
     for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
-          triplets.emplace_back(3 * node + i, 3 * block_col_[k] + j, block_value_[k](i, j));
+          triplets.emplace_back(3 * node + i, 3 * block_col_[k] + j, blocks[k](i, j));
         }
       }
     }

@@ -150,15 +150,7 @@ void LinearFem::tissue_forces_mn(Eigen::VectorXd& forces_mn) const {
 }
 
 void LinearFem::displace_free_nodes_mm(const Eigen::VectorXd& du_mm) {
-  for (int node = 0; node < node_count(); ++node) {
-    if (!holds_node(node)) u_.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
-  }
-  for (int node : sliding_.nodes()) {
-    if (prescribed_[node]) continue;  // prescribed since the step: it stays where it was put
-    Eigen::Vector3d du = du_mm.segment<3>(3 * node);
-    sliding_.project(node, du);
-    u_.segment<3>(3 * node) += du;
-  }
+  displace_free_and_sliding_nodes(*this, sliding_, prescribed_, du_mm, u_);
   update_deformed();
 }
 

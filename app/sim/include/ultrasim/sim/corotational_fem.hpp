@@ -174,6 +174,17 @@ class CorotationalFem final : public DeformationEngine {
   // held along the probe's normal only; stop_sliding() forgets last frame's.
   void choose_sliding_nodes();
   void stop_sliding();
+  // Row `node` of K_R (the last assembly) times v.
+  Eigen::Vector3d warped_row_times(int node, const Eigen::VectorXd& v) const;
+  // sum + the element terms R K_e (x0 − Rᵀ x0) of every tet holding the node.
+  Eigen::Vector3d add_element_forces(int node, Eigen::Vector3d sum) const;
+  // Global block k (on or above the diagonal) summed from its tets' blocks with these gradients
+  // (the rotated ones: K_R's block; the rest ones: K's).
+  Eigen::Matrix3d summed_block(int k,
+                               const std::vector<Eigen::Matrix<double, 3, 4>>& gradients) const;
+  // Blocks in K_R's pattern as a sparse matrix (allocates).
+  Eigen::SparseMatrix<double, Eigen::RowMajor> node_blocks_as_matrix(
+      const std::vector<Eigen::Matrix3d>& blocks) const;
   // K_R u − b at a node with the last assembly and the anchors: the force holding it there, mN.
   Eigen::Vector3d node_force_mn(int node) const;
   // Marks fixed, prescribed and contact nodes held and puts them at their displacements (a

@@ -63,4 +63,24 @@ class SlidingNodes {
   std::vector<int> nodes_;
 };
 
+// A correction's move of a FEM whose CG slides nodes (DeformationEngine::displace_free_nodes_mm,
+// the PCG and corotational FEMs): u_mm += du_mm at every node `engine` does not hold, and at each
+// sliding node not prescribed since the step (it stays where it was put) du_mm's part in its
+// tangent plane.
+inline void displace_free_and_sliding_nodes(const DeformationEngine& engine,
+                                            const SlidingNodes& sliding,
+                                            std::span<const std::uint8_t> prescribed,
+                                            const Eigen::VectorXd& du_mm, Eigen::VectorXd& u_mm) {
+  const auto nodes = static_cast<int>(prescribed.size());
+  for (int node = 0; node < nodes; ++node) {
+    if (!engine.holds_node(node)) u_mm.segment<3>(3 * node) += du_mm.segment<3>(3 * node);
+  }
+  for (int node : sliding.nodes()) {
+    if (prescribed[node]) continue;
+    Eigen::Vector3d du = du_mm.segment<3>(3 * node);
+    sliding.project(node, du);
+    u_mm.segment<3>(3 * node) += du;
+  }
+}
+
 }  // namespace ultrasim::sim
