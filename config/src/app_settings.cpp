@@ -202,8 +202,12 @@ TableSchema<sim::CorotationalSettings> corotational_schema() {
               "few folded under the probe's rim are accepted)."));
   t.add(field("rotation_update_tolerance", &S::rotation_update_tolerance, RealIn::closed(0.0, 1.0),
               "A tet keeps its rotation while its deformation gradient has turned less than "
-              "this from it, radians (its forces then turned by less); 0: every tet's rotation "
-              "every frame."));
+              "this from it, radians (its forces then turned by less); 0 (with "
+              "max_rotation_updates_fraction 1): every tet's rotation every frame."));
+  t.add(field("max_rotation_updates_fraction", &S::max_rotation_updates_fraction,
+              RealIn::open_closed(0.0, 1.0),
+              "At most this fraction of the tets take a new rotation a frame, the most turned "
+              "first (the others a frame or more later); 1: every tet turned past the tolerance."));
   add_held_contact_fields(t);
   return t;
 }

@@ -25,11 +25,14 @@ using Clock = std::chrono::steady_clock;
 void BM_KeptRotations(benchmark::State& state) {
   const double tolerance = 1e-3 * static_cast<double>(state.range(0));
   const bool slide = state.range(1) != 0;
+  const double cap = 1e-2 * static_cast<double>(state.range(2));
   const bench::Block& b = bench::block(37, 9, 28);
   drivers::posix::ThreadPool jobs(2);
   sim::CorotationalSettings every_settings, kept_settings;
   every_settings.rotation_update_tolerance = 0.0;
+  every_settings.max_rotation_updates_fraction = 1.0;
   kept_settings.rotation_update_tolerance = tolerance;
+  kept_settings.max_rotation_updates_fraction = cap;
   sim::CorotationalFem every(b.mesh, b.materials, b.fixed, every_settings, &jobs);
   sim::CorotationalFem kept(b.mesh, b.materials, b.fixed, kept_settings, &jobs);
   const auto probe_at = [&](int frame) {
@@ -64,11 +67,15 @@ void BM_KeptRotations(benchmark::State& state) {
 }
 
 BENCHMARK(BM_KeptRotations)
-    ->ArgNames({"tolerance_e-3", "slide"})
-    ->Args({1, 1})
-    ->Args({10, 1})
-    ->Args({1, 0})
-    ->Args({10, 0})
+    ->ArgNames({"tolerance_e-3", "slide", "cap_percent"})
+    ->Args({1, 1, 100})
+    ->Args({10, 1, 100})
+    ->Args({10, 1, 5})
+    ->Args({10, 1, 2})
+    ->Args({1, 0, 100})
+    ->Args({10, 0, 100})
+    ->Args({10, 0, 5})
+    ->Args({10, 0, 2})
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);

@@ -118,6 +118,7 @@ sim::EngineSettings unlimited_budget_settings() {
   settings.corotational.relative_tolerance = 1e-12;
   // Every rotation every frame: the budgeted engine's kept rotations are part of its error.
   settings.corotational.rotation_update_tolerance = 0.0;
+  settings.corotational.max_rotation_updates_fraction = 1.0;
   return settings;
 }
 

@@ -31,8 +31,10 @@ int encode_contribution(int tet, int a, int b) {
   return 16 * tet + 4 * a + b;
 }
 
-Eigen::Matrix3d edge_matrix(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
-                            const Eigen::Vector3d& x2, const Eigen::Vector3d& x3) {
+[[gnu::always_inline]] inline Eigen::Matrix3d edge_matrix(const Eigen::Vector3d& x0,
+                                                          const Eigen::Vector3d& x1,
+                                                          const Eigen::Vector3d& x2,
+                                                          const Eigen::Vector3d& x3) {
   Eigen::Matrix3d e;
   e << x1 - x0, x2 - x0, x3 - x0;
   return e;
@@ -97,7 +99,8 @@ Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
 // component of the turn, however unequal the stretches. Infinite (extract again) for an inverted
 // or collapsed f, or one whose symmetric part in r's frame is not positive definite (r is then
 // not its rotation at all: a half turn away, say).
-double rotation_drift(const Eigen::Matrix3d& r, const Eigen::Matrix3d& f) {
+[[gnu::always_inline]] inline double rotation_drift(const Eigen::Matrix3d& r,
+                                                    const Eigen::Matrix3d& f) {
   constexpr double kCollapsedStretch = 0.1;
   const Eigen::Matrix3d s = r.transpose() * f;
   const Eigen::Matrix3d symmetric = 0.5 * (s + s.transpose());
@@ -115,8 +118,8 @@ double rotation_drift(const Eigen::Matrix3d& r, const Eigen::Matrix3d& f) {
 }
 
 // x_b − x_0 of tet `tet` for a node-major displacement vector on top of rest positions.
-Eigen::Matrix3d deformed_edges(const geometry::Tet& tet, const std::vector<Eigen::Vector3d>& rest,
-                               const Eigen::VectorXd& u) {
+[[gnu::always_inline]] inline Eigen::Matrix3d deformed_edges(
+    const geometry::Tet& tet, const std::vector<Eigen::Vector3d>& rest, const Eigen::VectorXd& u) {
   const auto x = [&](int a) -> Eigen::Vector3d { return rest[tet[a]] + u.segment<3>(3 * tet[a]); };
   return edge_matrix(x(0), x(1), x(2), x(3));
 }
@@ -131,8 +134,9 @@ Eigen::Matrix3d volume_stress(const Eigen::Matrix3d& strain, const Eigen::Vector
 // Node block K_ab of a linear tet's stiffness from its shape-function gradients: for isotropic
 // linear elasticity K_ab = V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I). With the rotated
 // gradients R g it is the warped block R K_ab Rᵀ directly: ~20 flops instead of two 3×3 products.
-inline Eigen::Matrix3d stiffness_block(const Eigen::Vector3d& ga, const Eigen::Vector3d& gb,
-                                       const Eigen::Vector2d& lame_volume) {
+[[gnu::always_inline]] inline Eigen::Matrix3d stiffness_block(const Eigen::Vector3d& ga,
+                                                              const Eigen::Vector3d& gb,
+                                                              const Eigen::Vector2d& lame_volume) {
   const Eigen::Vector3d lambda_ga = lame_volume[0] * ga, mu_gb = lame_volume[1] * gb;
   Eigen::Matrix3d k;
   for (int j = 0; j < 3; ++j) {
@@ -168,6 +172,10 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (!(settings.rotation_update_tolerance >= 0.0 && settings.rotation_update_tolerance <= 1.0)) {
     throw std::invalid_argument("rotation_update_tolerance must be in [0, 1]");
   }
+  if (!(settings.max_rotation_updates_fraction > 0.0 &&
+        settings.max_rotation_updates_fraction <= 1.0)) {
+    throw std::invalid_argument("max_rotation_updates_fraction must be in (0, 1]");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -191,7 +199,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   rotated_gradients_ = shape_gradients_;
   element_rhs_.assign(tets_.size(), Eigen::Matrix<double, 3, 4>::Zero());
   rotation_moved_.assign(tets_.size(), 1);
-  block_moved_.assign(block_col_.size(), 1);
+  turn_.assign(tets_.size(), 0.0);
+  turn_scratch_.reserve(tets_.size());
+  block_update_.assign(block_col_.size(), BlockUpdate::kSumAgain);
   node_moved_.assign(n, 1);
   loads_changed_ = true;
   assemble_warped_system();
@@ -567,52 +577,154 @@ void CorotationalFem::hold_constrained_nodes() {
   }
 }
 
-void CorotationalFem::update_rotations(double tolerance) {
-  const int chunks = tet_chunks();
-  for_each_chunk(chunks, [&](int chunk) {
-    const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);
-    int updated = 0;
-    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
-      const auto& g = shape_gradients_[t];
-      // F = Σ_b (x_b − x_0) g_bᵀ.
-      const Eigen::Matrix3d f =
-          deformed_edges(tets_[t], rest_, u_).lazyProduct(g.rightCols<3>().transpose());
-      rotation_moved_[t] = !(rotation_drift(rotation_[t], f) < tolerance);
-      if (!rotation_moved_[t]) continue;
-      ++updated;
-      const Eigen::Matrix3d r = polar_rotation(f);
-      rotation_[t] = r;
-      rotated_gradients_[t].noalias() = r.lazyProduct(g);
-      // Element rhs R K_e (x0 − Rᵀ x0): the displacement x0 − Rᵀ x0 has gradient I − Rᵀ, so the
-      // nodal forces are R σ(I − sym R) V g_a.
-      const Eigen::Matrix3d strain = Eigen::Matrix3d::Identity() - 0.5 * (r + r.transpose());
-      element_rhs_[t].noalias() = (r * volume_stress(strain, lame_volume_[t])).lazyProduct(g);
-    }
-    chunk_sums_[chunk] = Eigen::Vector4d(updated, 0.0, 0.0, 0.0);
-  });
-  rotations_updated_ = static_cast<int>(sum_chunks(chunks)[0]);
+Eigen::Matrix3d CorotationalFem::deformation_gradient(int t) const {
+  // F = Σ_b (x_b − x_0) g_bᵀ.
+  return deformed_edges(tets_[t], rest_, u_)
+      .lazyProduct(shape_gradients_[t].rightCols<3>().transpose());
 }
 
-void CorotationalFem::assemble_warped_system() {
+void CorotationalFem::extract_rotation(int t, const Eigen::Matrix3d& f) {
+  const Eigen::Matrix3d r = polar_rotation(f);
+  rotation_[t] = r;
+  const auto& g = shape_gradients_[t];
+  rotated_gradients_[t].noalias() = r.lazyProduct(g);
+  // Element rhs R K_e (x0 − Rᵀ x0): the displacement x0 − Rᵀ x0 has gradient I − Rᵀ, so the
+  // nodal forces are R σ(I − sym R) V g_a.
+  const Eigen::Matrix3d strain = Eigen::Matrix3d::Identity() - 0.5 * (r + r.transpose());
+  element_rhs_[t].noalias() = (r * volume_stress(strain, lame_volume_[t])).lazyProduct(g);
+}
+
+void CorotationalFem::update_rotations(double tolerance, int max_updates) {
+  const int chunks = tet_chunks();
+  const auto tets_in = [&](int chunk) {
+    return std::pair{chunk * kTetsPerChunk, std::min(tet_count(), (chunk + 1) * kTetsPerChunk)};
+  };
+  // Every tet's turn, then those past the tolerance, or the max_updates most turned of them.
+  for_each_chunk(chunks, [&](int chunk) {
+    const auto [begin, end] = tets_in(chunk);
+    int turned = 0;
+    for (int t = begin; t < end; ++t) {
+      turn_[t] = rotation_drift(rotation_[t], deformation_gradient(t));
+      turned += !(turn_[t] < tolerance);
+    }
+    chunk_sums_[chunk] = Eigen::Vector4d(turned, 0.0, 0.0, 0.0);
+  });
+  const int turned = static_cast<int>(sum_chunks(chunks)[0]);
+  if (turned <= max_updates) {
+    for_each_chunk(chunks, [&](int chunk) {
+      const auto [begin, end] = tets_in(chunk);
+      for (int t = begin; t < end; ++t) rotation_moved_[t] = !(turn_[t] < tolerance);
+    });
+    rotations_updated_ = turned;
+  } else {
+    // The max_updates most turned: those past the max_updates-th largest turn, then of those
+    // at it (a regular mesh's twins turn alike; inverted tets are all infinitely turned) the
+    // first in tet order.
+    turn_scratch_.clear();  // capacity: every tet
+    for (const double turn : turn_) {
+      if (!(turn < tolerance)) turn_scratch_.push_back(turn);
+    }
+    const auto nth = turn_scratch_.begin() + (turned - max_updates);
+    std::nth_element(turn_scratch_.begin(), nth, turn_scratch_.end());
+    const double threshold = *nth;
+    int ties_left =
+        max_updates - static_cast<int>(std::count_if(
+                          nth, turn_scratch_.end(), [&](double turn) { return turn > threshold; }));
+    for (int t = 0; t < tet_count(); ++t) {
+      const bool tie = turn_[t] == threshold && ties_left > 0;
+      ties_left -= tie;
+      rotation_moved_[t] = turn_[t] > threshold || tie;
+    }
+    rotations_updated_ = max_updates;
+  }
+  plan_block_updates(rotations_updated_ == tet_count());
+  take_out_moved_terms();  // while the moved tets still hold their old rotations
+  for_each_chunk(chunks, [&](int chunk) {
+    const auto [begin, end] = tets_in(chunk);
+    for (int t = begin; t < end; ++t) {
+      if (rotation_moved_[t]) extract_rotation(t, deformation_gradient(t));
+    }
+  });
+}
+
+int CorotationalFem::rotation_update_cap() const {
+  return std::max(1, static_cast<int>(std::ceil(settings_.max_rotation_updates_fraction *
+                                                static_cast<double>(tet_count()))));
+}
+
+Eigen::Matrix3d CorotationalFem::moved_terms(int k) const {
+  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+  for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
+    const int code = contribution_[c];
+    const int t = code >> 4, a = (code >> 2) & 3, b = code & 3;
+    if (!rotation_moved_[t]) continue;
+    sum += stiffness_block(rotated_gradients_[t].col(a), rotated_gradients_[t].col(b),
+                           lame_volume_[t]);
+  }
+  return sum;
+}
+
+void CorotationalFem::plan_block_updates(bool every_tet_moved) {
+  if (every_tet_moved) {
+    std::fill(node_moved_.begin(), node_moved_.end(), 1);
+    std::fill(block_update_.begin(), block_update_.end(), BlockUpdate::kSumAgain);
+    return;
+  }
   const auto moved = [&](int code) { return rotation_moved_[code >> 4] != 0; };
-  // A gather over global blocks, row bands in parallel: no two tasks write the same value.
+  const auto* const contributions = contribution_.data();
   for_each_chunk(node_chunks(), [&](int chunk) {
     const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
     for (int node = chunk * kNodesPerChunk; node < end; ++node) {
       // The diagonal block's contributions are exactly the tets holding this node, one each:
-      // if none of them moved, neither did any block of its row nor its rhs's tet terms.
+      // if none of them moved, neither did any block of its row nor its rhs's tet terms (the
+      // row's plans are then left from an earlier frame, and not read).
       const int diag = diagonal_block_[node];
-      const auto* const contributions = contribution_.data();
       node_moved_[node] = std::any_of(contributions + contribution_start_[diag],
                                       contributions + contribution_start_[diag + 1], moved);
-      if (!node_moved_[node] && !loads_changed_) continue;
+      if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+        if (mirror_block_[k] >= 0) continue;  // below the diagonal: copied from its mirror
+        const int terms = contribution_start_[k + 1] - contribution_start_[k];
+        const int moved_terms =
+            static_cast<int>(std::count_if(contributions + contribution_start_[k],
+                                           contributions + contribution_start_[k + 1], moved));
+        // Swapping a term costs two evaluations (out, in), summing again one per term.
+        block_update_[k] = moved_terms == 0          ? BlockUpdate::kKept
+                           : 2 * moved_terms < terms ? BlockUpdate::kSwapTerms
+                                                     : BlockUpdate::kSumAgain;
+      }
+    }
+  });
+}
+
+void CorotationalFem::take_out_moved_terms() {
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
+    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      if (!node_moved_[node]) continue;
+      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+        if (mirror_block_[k] < 0 && block_update_[k] == BlockUpdate::kSwapTerms) {
+          block_value_[k] -= moved_terms(k);
+        }
+      }
+    }
+  });
+}
+
+void CorotationalFem::assemble_warped_system() {
+  // A gather over global blocks, row bands in parallel: no two tasks write the same value.
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
+    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+      if (!node_moved_[node] && !loads_changed_) continue;
+      for (int k = block_row_start_[node]; node_moved_[node] && k < block_row_start_[node + 1];
+           ++k) {
         if (mirror_block_[k] >= 0) continue;  // below the diagonal: the second pass
-        block_moved_[k] =
-            node_moved_[node] && std::any_of(contributions + contribution_start_[k],
-                                             contributions + contribution_start_[k + 1], moved);
-        if (!block_moved_[k]) continue;                         // every tet in it kept its rotation
-        block_value_[k] = summed_block(k, rotated_gradients_);  // Σ R K_ab Rᵀ
+        if (block_update_[k] == BlockUpdate::kSwapTerms) {
+          block_value_[k] += moved_terms(k);  // their old terms were taken out
+        } else if (block_update_[k] == BlockUpdate::kSumAgain) {
+          block_value_[k] = summed_block(k, rotated_gradients_);  // Σ R K_ab Rᵀ
+        }
       }
       rhs_.segment<3>(3 * node) = add_element_forces(node, load_mn_.segment<3>(3 * node));
       update_inverse_diagonal(node);
@@ -620,15 +732,15 @@ void CorotationalFem::assemble_warped_system() {
   });
   loads_changed_ = false;
   // Blocks below the diagonal, from the finished blocks above it. A block's tets hold both its
-  // nodes: in the row of a node that no moved tet holds, none changed (and block_moved_ is
-  // left from an earlier frame in such a row).
+  // nodes: in the row of a node that no moved tet holds, none changed.
   for_each_chunk(node_chunks(), [&](int chunk) {
     const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
     for (int node = chunk * kNodesPerChunk; node < end; ++node) {
       if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         const int mirror = mirror_block_[k];
-        if (mirror >= 0 && node_moved_[block_col_[k]] && block_moved_[mirror]) {
+        if (mirror >= 0 && node_moved_[block_col_[k]] &&
+            block_update_[mirror] != BlockUpdate::kKept) {
           block_value_[k] = block_value_[mirror].transpose();
         }
       }
@@ -844,7 +956,7 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
                                              const StepBudget& may_continue) {
   u_before_step_ = u_;
   apply_constraints(probe);
-  update_rotations(settings_.rotation_update_tolerance);
+  update_rotations(settings_.rotation_update_tolerance, rotation_update_cap());
   assemble_warped_system();
   const PcgResult pcg =
       run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance, may_continue);
@@ -869,8 +981,8 @@ CorotationalConvergence CorotationalFem::solve_to_convergence(double tolerance_m
       static_cast<int>(2 * dofs + 100);  // CG needs ≤ dofs steps, in exact arithmetic
   PcgResult pcg;
   while (result.outer_iterations < max_outer) {
-    u_before_step_ = u_;    // the shape this outer iteration starts from
-    update_rotations(0.0);  // the reference: every rotation exact
+    u_before_step_ = u_;                 // the shape this outer iteration starts from
+    update_rotations(0.0, tet_count());  // the reference: every rotation exact
     assemble_warped_system();
     pcg = run_pcg(max_pcg, kConvergedRelativeResidual, {});
     result.pcg_iterations += pcg.iterations;

@@ -60,6 +60,8 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.stitching.corotational_exchanges_per_frame,
             b.stitching.corotational_exchanges_per_frame);
   EXPECT_EQ(a.corotational.rotation_update_tolerance, b.corotational.rotation_update_tolerance);
+  EXPECT_EQ(a.corotational.max_rotation_updates_fraction,
+            b.corotational.max_rotation_updates_fraction);
   EXPECT_EQ(a.stitching.coarse_correction, b.stitching.coarse_correction);
   EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
   EXPECT_EQ(a.stitching.sleep_motion_mm, b.stitching.sleep_motion_mm);
@@ -163,6 +165,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.msds_exchanges_per_frame = 3;
   changed.stitching.corotational_exchanges_per_frame = 2;
   changed.corotational.rotation_update_tolerance = 0.0025;
+  changed.corotational.max_rotation_updates_fraction = 0.125;
   changed.stitching.coarse_correction = false;
   changed.stitching.sleep_force_mn = 0.25;
   changed.stitching.sleep_motion_mm = 2e-3;

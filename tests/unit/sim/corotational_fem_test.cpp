@@ -97,6 +97,12 @@ TEST(CorotationalFem, RejectsMismatchedInputsBadTetsNonPhysicalMaterialsAndAZero
                  std::invalid_argument)
         << tolerance;
   }
+  for (double cap : {0.0, -0.1, 1.5, std::nan("")}) {
+    CorotationalSettings bad_cap;
+    bad_cap.max_rotation_updates_fraction = cap;
+    EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_cap), std::invalid_argument)
+        << cap;
+  }
   auto bad = b.materials;
   bad[3].poisson_ratio = 0.5;
   EXPECT_THROW(CorotationalFem(b.mesh, bad, b.fixed, ok), std::invalid_argument);
@@ -240,6 +246,7 @@ TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhen
   CorotationalFem fem(b.mesh, b.materials, b.fixed, budget(20));
   CorotationalSettings every_rotation = budget(20);
   every_rotation.rotation_update_tolerance = 0.0;
+  every_rotation.max_rotation_updates_fraction = 1.0;
   CorotationalFem exact(b.mesh, b.materials, b.fixed, every_rotation);
   double last_force = 0.0;
   for (double depth : {1.0, 2.0, 3.0, 4.0}) {
@@ -382,6 +389,7 @@ TEST(CorotationalFem, PerFrameBudgetApproachesTheConvergedAnswerAsIterationsGrow
   const auto error_after = [&](int frames, int iterations) {
     CorotationalSettings settings = budget(iterations);
     settings.rotation_update_tolerance = 0.0;  // the CG's budget alone
+    settings.max_rotation_updates_fraction = 1.0;
     CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
     for (int frame = 0; frame < frames; ++frame) fem.step(&probe, 1.0 / 30);
     const Eigen::VectorXd per_frame = fem.displacements_mm();
@@ -462,6 +470,7 @@ TEST(CorotationalFem, KeptRotationsSettleWithinTheirToleranceOfTheConvergedAnswe
   const auto run = [&](double tolerance) {
     CorotationalSettings settings = budget(20);
     settings.rotation_update_tolerance = tolerance;
+    settings.max_rotation_updates_fraction = 1.0;
     CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
     Run r;
     constexpr int kFrames = 60;
@@ -488,6 +497,92 @@ TEST(CorotationalFem, KeptRotationsSettleWithinTheirToleranceOfTheConvergedAnswe
       "once settled %.1f %% and %.1f %%\n",
       error(every), error(kept), error(coarse), 100 * kept.last_frames_updated,
       100 * coarse.last_frames_updated);
+}
+
+// With a cap on a frame's new rotations, the most turned tets take theirs first. The block,
+// handed a shape twisted about the vertical by an angle growing along x (0 to 0.3 rad), and its
+// rotations kept from rest: a frame extracts a tenth of them, and every tet it chose (with no
+// fixed node: those the step pulls back to rest are turned most of all) lies at least as far
+// along the twist as every tet it left, within one tet's width.
+TEST(CorotationalFem, ACappedFrameTakesTheMostTurnedTetsFirst) {
+  Block b = make_block(30.0, 0.45, {17, 9, 9});
+  CorotationalSettings settings = budget(1);
+  settings.max_rotation_updates_fraction = 0.1;
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+  const auto& rest = b.mesh.rest_positions_mm;
+  double x_min = rest[0].x(), x_max = rest[0].x();
+  for (const auto& p : rest) {
+    x_min = std::min(x_min, p.x());
+    x_max = std::max(x_max, p.x());
+  }
+  const auto twist_rad = [&](double x) { return 0.3 * (x - x_min) / (x_max - x_min); };
+  Eigen::VectorXd twisted(3 * fem.node_count());
+  for (int n = 0; n < fem.node_count(); ++n) {
+    const Eigen::AngleAxisd turn(twist_rad(rest[n].x()), Eigen::Vector3d::UnitZ());
+    twisted.segment<3>(3 * n) = turn * rest[n] - rest[n];
+  }
+  fem.set_displacements_mm(twisted);
+  fem.step(nullptr, 1.0 / 30);
+  const int cap = static_cast<int>(std::ceil(0.1 * fem.tet_count()));
+  EXPECT_EQ(fem.rotations_updated(), cap);  // every tet turned past the tolerance
+  double least_chosen = 1e9, most_left = -1e9;
+  int chosen = 0;
+  for (int t = 0; t < fem.tet_count(); ++t) {
+    const auto& tet = b.mesh.tets[t];
+    if (b.fixed[tet[0]] || b.fixed[tet[1]] || b.fixed[tet[2]] || b.fixed[tet[3]]) continue;
+    const double x = 0.25 * (rest[tet[0]] + rest[tet[1]] + rest[tet[2]] + rest[tet[3]]).x();
+    const bool extracted = !fem.tet_rotation(t).isApprox(Eigen::Matrix3d::Identity(), 1e-12);
+    chosen += extracted;
+    if (extracted) {
+      least_chosen = std::min(least_chosen, twist_rad(x));
+    } else {
+      most_left = std::max(most_left, twist_rad(x));
+    }
+  }
+  EXPECT_GT(chosen, cap / 4);
+  const double tet_width_rad = twist_rad(x_min + (x_max - x_min) / 16);
+  EXPECT_GE(least_chosen, most_left - tet_width_rad);
+  EXPECT_GT(least_chosen, 0.2);  // the far end, not a spread
+}
+
+// A cap that binds while the probe slides: no frame extracts more, the frames after it catch up
+// while the probe is held, and the engine settles as close to the converged answer as it does
+// without the cap.
+TEST(CorotationalFem, ACappedEngineCatchesUpWhileTheProbeIsHeld) {
+  Block b = make_block();
+  const auto run = [&](double cap_fraction, int& frames_at_cap, int& largest_update) {
+    CorotationalSettings settings = budget(20);
+    settings.max_rotation_updates_fraction = cap_fraction;
+    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+    const int cap = static_cast<int>(std::ceil(cap_fraction * fem.tet_count()));
+    frames_at_cap = largest_update = 0;
+    for (int frame = 0; frame < 40; ++frame) {
+      const ProbeCollider probe = sliding_face(frame);
+      fem.step(&probe, 1.0 / 30);
+      frames_at_cap += fem.rotations_updated() == cap;
+      largest_update = std::max(largest_update, fem.rotations_updated());
+    }
+    const ProbeCollider held = sliding_face(40);
+    for (int frame = 0; frame < 120; ++frame) fem.step(&held, 1.0 / 30);
+    EXPECT_EQ(fem.rotations_updated(), 0);
+    const Eigen::VectorXd u = fem.displacements_mm();
+    EXPECT_TRUE(fem.solve_to_convergence(1e-9, 100).converged);
+    return std::pair{u, Eigen::VectorXd(fem.displacements_mm())};
+  };
+  int uncapped_at_cap = 0, uncapped_largest = 0, capped_at_cap = 0, capped_largest = 0;
+  const auto [free_u, free_converged] = run(1.0, uncapped_at_cap, uncapped_largest);
+  const auto [capped_u, capped_converged] = run(0.02, capped_at_cap, capped_largest);
+  const int cap = static_cast<int>(std::ceil(0.02 * static_cast<double>(b.mesh.tets.size())));
+  EXPECT_GT(uncapped_largest, 2 * cap);  // the cap binds
+  EXPECT_LE(capped_largest, cap);
+  EXPECT_GT(capped_at_cap, 3);
+  const double peak = max_nodal_norm(free_converged);
+  const double free_error = max_nodal_norm(free_u - free_converged) / peak;
+  const double capped_error = max_nodal_norm(capped_u - capped_converged) / peak;
+  EXPECT_LT(capped_error, std::max(2.0 * free_error, 1e-3));
+  EXPECT_LT(max_nodal_norm(capped_converged - free_converged) / peak, 1e-6);
+  std::printf("settled against converged: uncapped %.1e, capped %.1e; frames at the cap %d\n",
+              free_error, capped_error, capped_at_cap);
 }
 
 // Only the blocks of tets whose rotation moved are summed again: whatever a frame kept, the
@@ -552,6 +647,7 @@ TEST(CorotationalFem, TakesAnchorSpringsAndTheCorrectionsInterfaceAsThePcgFemDoe
   Block b = make_block();
   CorotationalSettings every_rotation = budget(20);
   every_rotation.rotation_update_tolerance = 0.0;
+  every_rotation.max_rotation_updates_fraction = 1.0;
   CorotationalFem corot(b.mesh, b.materials, b.fixed, every_rotation);
   LinearFem linear(b.mesh, b.materials, b.fixed, FemSettings{});
   ASSERT_TRUE(corot.supports_anchor_springs());
@@ -733,6 +829,7 @@ TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   // Every rotation every frame: a rotation a tet keeps is state the displacements do not carry.
   CorotationalSettings settings = budget(20);
   settings.rotation_update_tolerance = 0.0;
+  settings.max_rotation_updates_fraction = 1.0;
   CorotationalFem first(b.mesh, b.materials, b.fixed, settings);
   for (int frame = 0; frame < 5; ++frame) first.step(&probe, 1.0 / 30);
   Eigen::VectorXd handed_over = first.displacements_mm();
@@ -752,7 +849,9 @@ TEST(CorotationalFem, SetDisplacementsCarriesOverAndKeepsFixedNodesAtRest) {
   // Handed over to an engine whose rotations were kept from another shape (rest): it holds no
   // node the old shape's contacts held, and its next step extracts the rotations of the tets
   // that shape has turned, and only those (most of the block's tets turn under this press).
-  CorotationalFem lazy(b.mesh, b.materials, b.fixed, budget(20));
+  CorotationalSettings kept_rotations = budget(20);
+  kept_rotations.max_rotation_updates_fraction = 1.0;  // all it turned, in one frame
+  CorotationalFem lazy(b.mesh, b.materials, b.fixed, kept_rotations);
   for (int frame = 0; frame < 5; ++frame) lazy.step(&probe, 1.0 / 30);
   const int top_centre = node_at(b.mesh, {0, 0, 0});
   ASSERT_TRUE(lazy.holds_node(top_centre));

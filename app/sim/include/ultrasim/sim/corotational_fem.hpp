@@ -36,10 +36,12 @@ struct CorotationalConvergence {
 // the collider's push-out target and held there, or, under the default Coulomb slip, held along
 // the probe's normal only and left to slide in the CG as the PCG FEM's; fixed nodes at rest), every
 // tet's rotation is extracted from the shape with those nodes moved (a tet whose deformation
-// gradient has turned less than settings.rotation_update_tolerance from its rotation keeps it),
-// the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a block-sparse matrix
-// whose pattern and scatter map were built once (only the blocks of tets whose rotation changed
-// are summed again), and
+// gradient has turned less than settings.rotation_update_tolerance from its rotation keeps it,
+// and of those turned further at most settings.max_rotation_updates_fraction of all tets, the
+// most turned, take theirs), the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a
+// block-sparse matrix whose pattern and scatter map were built once (only the blocks of tets
+// whose rotation changed are brought up to date: the old terms of those tets swapped for their
+// new ones where they are fewer than half a block's terms, else the block summed again), and
 // K_R u = Σ R K_e (x0 − Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with
 // a fixed iteration budget, warm-started from the last frame. So each frame's rotations lag its
 // solve by one frame; solve_to_convergence() repeats rotations and solves until the shape stops
@@ -147,7 +149,8 @@ class CorotationalFem final : public DeformationEngine {
   // Rotation of tet t at the last assembly.
   const Eigen::Matrix3d& tet_rotation(int t) const { return rotation_[t]; }
   // Tets whose rotation the last step (or the last outer iteration of solve_to_convergence())
-  // extracted anew; the others kept theirs (settings.rotation_update_tolerance).
+  // extracted anew; the others kept theirs (settings.rotation_update_tolerance and
+  // settings.max_rotation_updates_fraction).
   int rotations_updated() const { return rotations_updated_; }
 
   int node_count() const { return static_cast<int>(rest_.size()); }
@@ -191,10 +194,26 @@ class CorotationalFem final : public DeformationEngine {
   // sliding contact, as marked, keeps its own).
   void hold_constrained_nodes();
   // Extracts the rotation of every tet whose deformation gradient has turned `tolerance` radians
-  // or more from its rotation (every tet with 0) and marks it in rotation_moved_.
-  void update_rotations(double tolerance);
-  // Sums again the blocks of K_R with a tet marked in rotation_moved_, and the rhs and the
-  // preconditioner of the nodes such a tet holds (every node's after a load changed).
+  // or more from its rotation (every tet with 0), or of the `max_updates` most turned of them
+  // where there are more, and marks those in rotation_moved_.
+  void update_rotations(double tolerance, int max_updates);
+  // settings.max_rotation_updates_fraction of the tets (one at least).
+  int rotation_update_cap() const;
+  // Tet t's deformation gradient at the current displacements.
+  Eigen::Matrix3d deformation_gradient(int t) const;
+  // Takes f's rotation for tet t, with its rotated gradients and element rhs.
+  void extract_rotation(int t, const Eigen::Matrix3d& f);
+  // How each block of K_R above the diagonal in a row a moved tet holds is brought up to date:
+  // node_moved_ and block_update_ from rotation_moved_ (every block summed again when every tet
+  // moved).
+  void plan_block_updates(bool every_tet_moved);
+  // Σ of block k's terms from the tets marked in rotation_moved_, with their rotated gradients.
+  Eigen::Matrix3d moved_terms(int k) const;
+  // Subtracts the moved tets' terms (with their old rotations) from the blocks that swap terms.
+  void take_out_moved_terms();
+  // Brings the blocks of K_R with a tet marked in rotation_moved_ up to date (as planned: its
+  // moved tets' new terms added, or summed again), and the rhs and the preconditioner of the
+  // nodes such a tet holds (every node's after a load changed).
   void assemble_warped_system();
   struct PcgResult {
     int iterations = 0;
@@ -258,9 +277,15 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
   std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
-  std::vector<std::uint8_t> block_moved_;     // per block on or above the diagonal: summed again
-  std::vector<std::uint8_t> node_moved_;      // per node: held by a tet whose rotation moved
-  bool loads_changed_ = true;                 // since the last assembly: every rhs again
+  std::vector<double> turn_;                  // per tet: its turn at the last capped update
+  std::vector<double> turn_scratch_;          // the turns past the tolerance (capacity: tets)
+  // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out
+  // before their rotations change, in after: two evaluations each), fewer than half its terms;
+  // else summed again (one each).
+  enum class BlockUpdate : std::uint8_t { kKept, kSwapTerms, kSumAgain };
+  std::vector<BlockUpdate> block_update_;
+  std::vector<std::uint8_t> node_moved_;  // per node: held by a tet whose rotation moved
+  bool loads_changed_ = true;             // since the last assembly: every rhs again
   int rotations_updated_ = 0;
   Eigen::VectorXd u_, rhs_, inverse_diagonal_;
   Eigen::VectorXd r_, z_, p_, q_, u_before_step_;

@@ -108,12 +108,18 @@ struct CorotationalSettings {
   // (radians, to first order) away from it: its polar decomposition and its share of the
   // assembly are skipped, its forces then turned by less than this. A tet that only stretched or
   // squeezed has not turned, and most of a mesh away from the probe barely moves from frame to
-  // frame. 0: every tet's rotation every frame. 1e-2 (0.6°): against every rotation exact,
-  // 0.4-0.8 % of the peak displacement under a held press, 0.2-0.3 % under a slide (where the
-  // rotations' one-frame lag costs 1-6 %), and the stitched large case's touched sub-volumes fit
-  // the simulation's share (1e-3: 6.5 ms a frame against 4.3 ms; docs/accuracy.md, "Kept
-  // rotations", docs/benchmarks.md).
+  // frame. 0 (with max_rotation_updates_fraction 1): every tet's rotation every frame. 1e-2
+  // (0.6°): against every rotation exact, 0.4-0.8 % of the peak displacement under a held press,
+  // 0.2-0.3 % under a slide (where the rotations' one-frame lag costs 1-6 %), and the stitched
+  // large case's touched sub-volumes fit the simulation's share (1e-3: 6.5 ms a frame against
+  // 4.3 ms; docs/accuracy.md, "Kept rotations", docs/benchmarks.md).
   double rotation_update_tolerance = 1e-2;
+  // At most this fraction of the tets take a new rotation in a frame, the most turned first; the
+  // others keep theirs (and turn further) until a later frame has room for them. Under a deep
+  // press whose CG cannot catch up inside the frame's share, the shape creeps every frame and
+  // 15 % of a stitched sub-volume's tets turned past the tolerance each frame: their rotations
+  // and their blocks' sums took the time the CG needed. 1: every tet past the tolerance.
+  double max_rotation_updates_fraction = 0.05;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };
