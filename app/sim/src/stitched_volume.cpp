@@ -23,21 +23,6 @@ constexpr double kJoinHeldCopiesMm = 0.1;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
-// The fraction of inverted tets above which the method refuses a frame of one piece.
-double one_piece_inverted_fraction(EngineKind method, const EngineSettings& settings) {
-  switch (method) {
-    case EngineKind::kPcgFem:
-      return settings.fem.max_inverted_fraction;
-    case EngineKind::kCorotationalFem:
-      return settings.corotational.max_inverted_fraction;
-    case EngineKind::kMsdsExplicit:
-    case EngineKind::kMsdsImplicit:
-      return settings.msds.max_inverted_fraction;
-    default:
-      return 1.0;
-  }
-}
-
 }  // namespace
 
 bool stitchable(EngineKind method) {
@@ -91,8 +76,6 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
                              ? stitching.corotational_exchanges_per_frame
                              : stitching.exchanges_per_frame;
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
-  max_inverted_tets_ = static_cast<int>(one_piece_inverted_fraction(method, engine_settings) *
-                                        static_cast<double>(mesh_.tet_count()));
   build_copies(tet_materials);
   if (settings_.coarse_correction) {
     std::vector<SubVolumeBox> boxes;
@@ -692,18 +675,12 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
 }
 
 bool StitchedVolume::refuses_frame(std::span<const int> stepped, DivergenceCause& cause) {
-  int inverted = 0;
   for (int s : stepped) {
     const EngineStepStats& stats = subs_[s].last_stats;
     if (stats.recovery == Recovery::kReset || stats.recovery == Recovery::kKeptLastGood) {
       cause = stats.cause;
       return true;
     }
-    inverted += stats.inverted_tets;
-  }
-  if (inverted > max_inverted_tets_) {
-    cause = DivergenceCause::kInverted;
-    return true;
   }
   if (tears_a_seam()) {
     cause = DivergenceCause::kSeamTorn;

@@ -910,6 +910,42 @@ TEST(StitchedVolume, ASubVolumeRefusingAPressRefusesTheWholeFrame) {
   }
 }
 
+// The sub-volumes' own verdicts are the stitched frame's: a corotational press deep enough that the
+// face flattens tets between its contacts (which the method never counts against its limit: no
+// solve or retry changes them) stands while every sub-volume accepts its part. Summing every
+// sub-volume's inverted tets against one piece's limit refused such frames, each of them again
+// while the probe stayed (the large soak's refusal runs of 220-912 frames), and a folded shape
+// could never unfold.
+TEST(StitchedVolume, AFrameEverySubVolumeAcceptsStandsWhateverTetsTheProbeFlattens) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
+                          EngineSettings{}, StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
+  const int one_piece_limit =
+      static_cast<int>(EngineSettings{}.corotational.max_inverted_fraction * r.mesh.tet_count());
+  int flattened_past_the_limit = 0;
+  for (int f = 0; f < 60; ++f) {
+    const double depth_mm = std::min(8.0, 0.25 * (f + 1));
+    const ProbeCollider probe = ProbeCollider::linear_face(
+        {kSeamXmm, 9.0, depth_mm}, Eigen::Quaterniond::Identity(), 30.0, 14.0, 1.0);
+    const EngineStepStats s = stitched.step(&probe, 1.0 / 60);
+    ASSERT_TRUE(stitched.displacements_mm().allFinite());
+    int inverted = 0;
+    bool every_part_accepted = true;
+    for (int sub = 0; sub < stitched.sub_volume_count(); ++sub) {
+      if (!stitched.stepped(sub)) continue;
+      inverted += stitched.last_step_stats(sub).inverted_tets;
+      every_part_accepted =
+          every_part_accepted && stitched.last_step_stats(sub).recovery == Recovery::kNone;
+    }
+    if (!every_part_accepted) continue;
+    flattened_past_the_limit += inverted > one_piece_limit;
+    EXPECT_FALSE(s.diverged) << "frame " << f << ": " << cause_key(s.cause) << ", " << inverted
+                             << " inverted (one piece's limit " << one_piece_limit << ")";
+  }
+  EXPECT_GT(flattened_past_the_limit, 5) << "the press never flattened that many: meaningless";
+}
+
 // A sub-volume that takes a frame in smaller steps (diverged, recovered, the frame accepted)
 // gives the stitched frame its cause, whichever of the frame's exchanges diverged: the explicit
 // MSDS with its masses unscaled and twice its stable step, whose unstable mode the speed and

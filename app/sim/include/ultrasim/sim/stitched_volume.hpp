@@ -200,11 +200,15 @@ class StitchedVolume final : public DeformationEngine {
   // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
   // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
   // reach test widens by the move.
-  // Whether the frame must be refused as a whole: a sub-volume refused its part or was reset, or
-  // the stepped sub-volumes together inverted more tets than one piece allows. Accepting the
-  // rest would leave that sub-volume at its frame's start, or at rest, against neighbours
-  // pressed on: the seam tears, its springs pull the copies apart harder each frame, and the
-  // explicit MSDS blew up (the soak with the large case: 13 resets in 60 s, a 2.2 m gap).
+  // Whether the frame must be refused as a whole: a sub-volume refused its part or was reset.
+  // Accepting the rest would leave that sub-volume at its frame's start, or at rest, against
+  // neighbours pressed on: the seam tears, its springs pull the copies apart harder each frame,
+  // and the explicit MSDS blew up (the soak with the large case: 13 resets in 60 s, a 2.2 m gap).
+  // Each sub-volume's verdict is its method's own rule on its part (inverted tets over the
+  // method's fraction of its tets, less what the method exempts: the corotational FEM's tets
+  // pressed flat between probe contacts, a folded shape it was handed unfolding); their inverted
+  // tets are not summed against one piece's limit, which refused what every part accepted, again
+  // every frame while the probe stayed.
   // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
   // than it was): a torn seam. `cause` says which.
   bool refuses_frame(std::span<const int> stepped, DivergenceCause& cause);
@@ -236,7 +240,6 @@ class StitchedVolume final : public DeformationEngine {
   StitchingSettings settings_;
   // The frame's budget is one clock: the sub-volumes stepping in parallel ask it in turn.
   std::mutex budget_mutex_;
-  int max_inverted_tets_ = 0;  // one piece's allowance over the whole region
   hal::JobSystem* jobs_ = nullptr;
   std::vector<SubVolume> subs_;
   // Per grid node, its copies (CSR), and the seam spring's stiffness there (0 if not shared).
