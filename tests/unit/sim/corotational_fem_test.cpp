@@ -267,7 +267,9 @@ TEST(CorotationalFem, ProbePushesNodesOutForceGrowsWithDepthAndTissueRelaxesWhen
   }
   const int top_centre = node_at(b.mesh, {0, 0, 0});
   ASSERT_GE(top_centre, 0);
-  EXPECT_NEAR(fem.displacements_mm()[3 * top_centre + 2], 4.0, 1e-9);
+  // On the sphere's lowest point (sliding there, it settles onto it: 7e-9 mm off after the 30
+  // frames with the default cap on new rotations).
+  EXPECT_NEAR(fem.displacements_mm()[3 * top_centre + 2], 4.0, 1e-6);
   EngineStepStats lifted;
   for (int frame = 0; frame < 300; ++frame) {
     lifted = fem.step(nullptr, 1.0 / 30);
