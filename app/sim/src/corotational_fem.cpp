@@ -599,30 +599,36 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates) {
   const auto tets_in = [&](int chunk) {
     return std::pair{chunk * kTetsPerChunk, std::min(tet_count(), (chunk + 1) * kTetsPerChunk)};
   };
-  // Every tet's turn, then those past the tolerance, or the max_updates most turned of them.
+  // Every tet's turn, then those past the tolerance, or the max_updates most turned of them. A
+  // tet with no rotation near the one it holds (inverted, collapsed, its symmetric part not
+  // positive definite: an infinite turn) takes a new one every frame, outside the cap: ranked
+  // first, such tets under a deep press filled the cap, the same ones frame after frame, and no
+  // other tet's rotation moved while the probe stayed.
+  const auto lost = [](double turn) { return turn == std::numeric_limits<double>::infinity(); };
   for_each_chunk(chunks, [&](int chunk) {
     const auto [begin, end] = tets_in(chunk);
-    int turned = 0;
+    int turned = 0, lost_rotations = 0;
     for (int t = begin; t < end; ++t) {
       turn_[t] = rotation_drift(rotation_[t], deformation_gradient(t));
-      turned += !(turn_[t] < tolerance);
+      lost_rotations += lost(turn_[t]);
+      turned += !(turn_[t] < tolerance) && !lost(turn_[t]);
     }
-    chunk_sums_[chunk] = Eigen::Vector4d(turned, 0.0, 0.0, 0.0);
+    chunk_sums_[chunk] = Eigen::Vector4d(turned, lost_rotations, 0.0, 0.0);
   });
-  const int turned = static_cast<int>(sum_chunks(chunks)[0]);
+  const Eigen::Vector4d counts = sum_chunks(chunks);
+  const int turned = static_cast<int>(counts[0]);
   if (turned <= max_updates) {
     for_each_chunk(chunks, [&](int chunk) {
       const auto [begin, end] = tets_in(chunk);
       for (int t = begin; t < end; ++t) rotation_moved_[t] = !(turn_[t] < tolerance);
     });
-    rotations_updated_ = turned;
+    rotations_updated_ = turned + static_cast<int>(counts[1]);
   } else {
-    // The max_updates most turned: those past the max_updates-th largest turn, then of those
-    // at it (a regular mesh's twins turn alike; inverted tets are all infinitely turned) the
-    // first in tet order.
+    // The max_updates most turned: those past the max_updates-th largest finite turn, then of
+    // those at it (a regular mesh's twins turn alike) the first in tet order.
     turn_scratch_.clear();  // capacity: every tet
     for (const double turn : turn_) {
-      if (!(turn < tolerance)) turn_scratch_.push_back(turn);
+      if (!(turn < tolerance) && !lost(turn)) turn_scratch_.push_back(turn);
     }
     const auto nth = turn_scratch_.begin() + (turned - max_updates);
     std::nth_element(turn_scratch_.begin(), nth, turn_scratch_.end());
@@ -630,12 +636,13 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates) {
     int ties_left =
         max_updates - static_cast<int>(std::count_if(
                           nth, turn_scratch_.end(), [&](double turn) { return turn > threshold; }));
+    rotations_updated_ = 0;
     for (int t = 0; t < tet_count(); ++t) {
       const bool tie = turn_[t] == threshold && ties_left > 0;
       ties_left -= tie;
-      rotation_moved_[t] = turn_[t] > threshold || tie;
+      rotation_moved_[t] = turn_[t] > threshold || tie;  // the lost ones' infinite turns too
+      rotations_updated_ += rotation_moved_[t];
     }
-    rotations_updated_ = max_updates;
   }
   plan_block_updates(rotations_updated_ == tet_count());
   take_out_moved_terms();  // while the moved tets still hold their old rotations

@@ -195,7 +195,8 @@ class CorotationalFem final : public DeformationEngine {
   void hold_constrained_nodes();
   // Extracts the rotation of every tet whose deformation gradient has turned `tolerance` radians
   // or more from its rotation (every tet with 0), or of the `max_updates` most turned of them
-  // where there are more, and marks those in rotation_moved_.
+  // where there are more (besides those whose turn is infinite: inverted, collapsed, or not near
+  // any rotation of the one held, which always take one), and marks those in rotation_moved_.
   void update_rotations(double tolerance, int max_updates);
   // settings.max_rotation_updates_fraction of the tets (one at least).
   int rotation_update_cap() const;
@@ -277,7 +278,7 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
   std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
-  std::vector<double> turn_;                  // per tet: its turn at the last capped update
+  std::vector<double> turn_;                  // per tet: its turn at the last update
   std::vector<double> turn_scratch_;          // the turns past the tolerance (capacity: tets)
   // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out
   // before their rotations change, in after: two evaluations each), fewer than half its terms;

@@ -115,12 +115,15 @@ struct CorotationalSettings {
   // 4.3 ms; docs/accuracy.md, "Kept rotations", docs/benchmarks.md).
   double rotation_update_tolerance = 1e-2;
   // At most this fraction of the tets take a new rotation in a frame, the most turned first; the
-  // others keep theirs (and turn further) until a later frame has room for them. Under a deep
+  // others keep theirs (and turn further) until a later frame has room for them. A tet whose
+  // rotation is lost (inverted, collapsed, or too sheared for the one it holds) takes a new one
+  // every frame, outside the cap. Under a deep
   // press whose CG cannot catch up inside the frame's share, the shape creeps every frame and
   // 15 % of a stitched sub-volume's tets turned past the tolerance each frame: their rotations
   // and their blocks' sums took the time the CG needed (13 mm presses on the large case's seams:
-  // frames over 16.7 ms 2-5 × fewer at 2 % than without a cap, the held press relaxing more slowly,
-  // its force after 1 s up to 21 % higher; docs/benchmarks.md). 1: every tet past the tolerance.
+  // a quarter fewer frames over 16.7 ms at 2 % than without a cap, the held press relaxing more
+  // slowly, its force after 1 s up to 21 % higher; docs/benchmarks.md). 1: every tet past the
+  // tolerance.
   double max_rotation_updates_fraction = 0.02;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
