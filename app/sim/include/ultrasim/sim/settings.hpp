@@ -121,9 +121,8 @@ struct CorotationalSettings {
   // press whose CG cannot catch up inside the frame's share, the shape creeps every frame and
   // 15 % of a stitched sub-volume's tets turned past the tolerance each frame: their rotations
   // and their blocks' sums took the time the CG needed (13 mm presses on the large case's seams:
-  // a quarter fewer frames over 16.7 ms at 2 % than without a cap, the held press relaxing more
-  // slowly, its force after 1 s up to 21 % higher; docs/benchmarks.md). 1: every tet past the
-  // tolerance.
+  // a quarter fewer frames over 16.7 ms at 2 % than without a cap, every marker within 2 % of the
+  // uncapped engine's; docs/benchmarks.md, docs/accuracy.md). 1: every tet past the tolerance.
   double max_rotation_updates_fraction = 0.02;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
