@@ -917,7 +917,7 @@ int CorotationalFem::inversion_limit() const {
       std::floor(settings_.max_inverted_fraction * static_cast<double>(tet_count())));
 }
 
-void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
+void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget& may_continue) {
   const bool finite = u_.allFinite();
   const InversionCount inverted = finite ? count_inverted(u_) : InversionCount{};
   stats.inverted_tets = inverted.total;
@@ -939,6 +939,12 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats) {
     q_ = u_ - u_before_step_;
     double fraction = 1.0;
     for (int i = 0; i < kMaxBacktracks; ++i) {
+      // Each try recounts every tet's volume (a deep press's refused frames took ten): once the
+      // frame's time is spent, the previous shape at once, and the next frame tries again.
+      if (may_continue && !may_continue()) {
+        stats.cut_short = true;
+        break;
+      }
       fraction *= 0.5;
       u_ = u_before_step_ + fraction * q_;
       if (count_inverted(u_).with_free_node <= allowed) return;
@@ -972,7 +978,7 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
   stats.iterations = pcg.iterations;
   stats.relative_residual = pcg.relative_residual;
   stats.contact_nodes = static_cast<int>(contacts_.size());
-  accept_or_recover(stats);
+  accept_or_recover(stats, may_continue);
   stats.contact_force_n = measure_contact_forces();
   update_deformed();
   return stats;

@@ -839,6 +839,22 @@ TEST(CorotationalFem, InvertingFrameOverTheLimitIsBacktrackedReportedAndLeavesNo
   const double reached = cut->displacements_mm()[3 * skin_centre + 2];
   EXPECT_GT(reached, 0.0);
   EXPECT_LT(reached, 14.0);
+  EXPECT_FALSE(stats.cut_short);
+
+  // Out of time: no shorter update is tried (each recounts every tet), the previous shape (rest)
+  // at once, and the frame says it was cut short (the next one tries again).
+  CorotationalFem hurried(b.mesh, b.materials, b.fixed, inversion_limit((folds - 0.5) / tets));
+  hurried.prescribe_displacement(skin_centre, {0, 0, 14.0});
+  int asked = 0;
+  const auto out_of_time = hurried.step_within(nullptr, 1.0 / 30, [&] {
+    ++asked;
+    return false;
+  });
+  EXPECT_TRUE(out_of_time.diverged);
+  EXPECT_EQ(out_of_time.recovery, Recovery::kSubstepped);
+  EXPECT_TRUE(out_of_time.cut_short);
+  EXPECT_GE(asked, 1);
+  EXPECT_EQ(max_nodal_norm(hurried.displacements_mm()), 0.0);
 }
 
 // A shape with folded tets (say, handed over by another engine) is reported, its rotations stay

@@ -100,7 +100,8 @@ class CorotationalFem final : public DeformationEngine {
   // put nodes far inside it. frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // Fewer CG iterations when the budget runs out (one at least); contacts, rotations and the
-  // assembly are done every frame.
+  // assembly are done every frame. A frame inverted over the limit tries its shorter updates
+  // while the budget allows, and then goes back to the previous frame's shape (cut_short).
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
 
@@ -226,9 +227,10 @@ class CorotationalFem final : public DeformationEngine {
   double measure_contact_forces();
   // Inverted tets (with a free node) a frame may leave: max_inverted_fraction of all tets.
   int inversion_limit() const;
-  // Accepts the new shape, or recovers from a non-finite one or one inverted over the limit;
+  // Accepts the new shape, or recovers from a non-finite one or one inverted over the limit
+  // (the shorter updates only while may_continue() allows; then the previous shape, cut short);
   // fills the stats.
-  void accept_or_recover(EngineStepStats& stats);
+  void accept_or_recover(EngineStepStats& stats, const StepBudget& may_continue);
   void update_deformed();
   // The Jacobi preconditioner's entries at a node: its diagonal block's and its anchor's.
   void update_inverse_diagonal(int node);
