@@ -323,6 +323,14 @@ int CorotationalFem::node_chunks() const {
   return (node_count() + kNodesPerChunk - 1) / kNodesPerChunk;
 }
 
+std::pair<int, int> CorotationalFem::tet_range(int chunk) const {
+  return {chunk * kTetsPerChunk, std::min(tet_count(), (chunk + 1) * kTetsPerChunk)};
+}
+
+std::pair<int, int> CorotationalFem::node_range(int chunk) const {
+  return {chunk * kNodesPerChunk, std::min(node_count(), (chunk + 1) * kNodesPerChunk)};
+}
+
 template <typename Body>
 void CorotationalFem::for_each_chunk(int chunks, Body&& body) const {
   hal::parallel_for(jobs_, chunks, [&body](int chunk) { body(chunk); });
@@ -596,9 +604,6 @@ void CorotationalFem::extract_rotation(int t, const Eigen::Matrix3d& f) {
 
 void CorotationalFem::update_rotations(double tolerance, int max_updates) {
   const int chunks = tet_chunks();
-  const auto tets_in = [&](int chunk) {
-    return std::pair{chunk * kTetsPerChunk, std::min(tet_count(), (chunk + 1) * kTetsPerChunk)};
-  };
   // Every tet's turn, then those past the tolerance, or the max_updates most turned of them. A
   // tet with no rotation near the one it holds (inverted, collapsed, its symmetric part not
   // positive definite: an infinite turn) takes a new one every frame, outside the cap: ranked
@@ -606,7 +611,7 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates) {
   // other tet's rotation moved while the probe stayed.
   const auto lost = [](double turn) { return turn == std::numeric_limits<double>::infinity(); };
   for_each_chunk(chunks, [&](int chunk) {
-    const auto [begin, end] = tets_in(chunk);
+    const auto [begin, end] = tet_range(chunk);
     int turned = 0, lost_rotations = 0;
     for (int t = begin; t < end; ++t) {
       turn_[t] = rotation_drift(rotation_[t], deformation_gradient(t));
@@ -619,7 +624,7 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates) {
   const int turned = static_cast<int>(counts[0]);
   if (turned <= max_updates) {
     for_each_chunk(chunks, [&](int chunk) {
-      const auto [begin, end] = tets_in(chunk);
+      const auto [begin, end] = tet_range(chunk);
       for (int t = begin; t < end; ++t) rotation_moved_[t] = !(turn_[t] < tolerance);
     });
     rotations_updated_ = turned + static_cast<int>(counts[1]);
@@ -644,10 +649,9 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates) {
       rotations_updated_ += rotation_moved_[t];
     }
   }
-  plan_block_updates(rotations_updated_ == tet_count());
-  take_out_moved_terms();  // while the moved tets still hold their old rotations
+  prepare_block_updates(rotations_updated_ == tet_count());  // before the new rotations
   for_each_chunk(chunks, [&](int chunk) {
-    const auto [begin, end] = tets_in(chunk);
+    const auto [begin, end] = tet_range(chunk);
     for (int t = begin; t < end; ++t) {
       if (rotation_moved_[t]) extract_rotation(t, deformation_gradient(t));
     }
@@ -671,7 +675,7 @@ Eigen::Matrix3d CorotationalFem::moved_terms(int k) const {
   return sum;
 }
 
-void CorotationalFem::plan_block_updates(bool every_tet_moved) {
+void CorotationalFem::prepare_block_updates(bool every_tet_moved) {
   if (every_tet_moved) {
     std::fill(node_moved_.begin(), node_moved_.end(), 1);
     std::fill(block_update_.begin(), block_update_.end(), BlockUpdate::kSumAgain);
@@ -680,8 +684,8 @@ void CorotationalFem::plan_block_updates(bool every_tet_moved) {
   const auto moved = [&](int code) { return rotation_moved_[code >> 4] != 0; };
   const auto* const contributions = contribution_.data();
   for_each_chunk(node_chunks(), [&](int chunk) {
-    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
-    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
       // The diagonal block's contributions are exactly the tets holding this node, one each:
       // if none of them moved, neither did any block of its row nor its rhs's tet terms (the
       // row's plans are then left from an earlier frame, and not read).
@@ -692,25 +696,15 @@ void CorotationalFem::plan_block_updates(bool every_tet_moved) {
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         if (mirror_block_[k] >= 0) continue;  // below the diagonal: copied from its mirror
         const int terms = contribution_start_[k + 1] - contribution_start_[k];
-        const int moved_terms =
+        const int moved_count =
             static_cast<int>(std::count_if(contributions + contribution_start_[k],
                                            contributions + contribution_start_[k + 1], moved));
         // Swapping a term costs two evaluations (out, in), summing again one per term.
-        block_update_[k] = moved_terms == 0          ? BlockUpdate::kKept
-                           : 2 * moved_terms < terms ? BlockUpdate::kSwapTerms
+        block_update_[k] = moved_count == 0          ? BlockUpdate::kKept
+                           : 2 * moved_count < terms ? BlockUpdate::kSwapTerms
                                                      : BlockUpdate::kSumAgain;
-      }
-    }
-  });
-}
-
-void CorotationalFem::take_out_moved_terms() {
-  for_each_chunk(node_chunks(), [&](int chunk) {
-    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
-    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
-      if (!node_moved_[node]) continue;
-      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-        if (mirror_block_[k] < 0 && block_update_[k] == BlockUpdate::kSwapTerms) {
+        // Out with the rotations the moved tets still hold; in after they take their new ones.
+        if (block_update_[k] == BlockUpdate::kSwapTerms) {
           block_value_[k] -= moved_terms(k);
         }
       }
@@ -721,8 +715,8 @@ void CorotationalFem::take_out_moved_terms() {
 void CorotationalFem::assemble_warped_system() {
   // A gather over global blocks, row bands in parallel: no two tasks write the same value.
   for_each_chunk(node_chunks(), [&](int chunk) {
-    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
-    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
       if (!node_moved_[node] && !loads_changed_) continue;
       for (int k = block_row_start_[node]; node_moved_[node] && k < block_row_start_[node + 1];
            ++k) {
@@ -741,8 +735,8 @@ void CorotationalFem::assemble_warped_system() {
   // Blocks below the diagonal, from the finished blocks above it. A block's tets hold both its
   // nodes: in the row of a node that no moved tet holds, none changed.
   for_each_chunk(node_chunks(), [&](int chunk) {
-    const int end = std::min(node_count(), (chunk + 1) * kNodesPerChunk);
-    for (int node = chunk * kNodesPerChunk; node < end; ++node) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
       if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         const int mirror = mirror_block_[k];
@@ -758,9 +752,6 @@ void CorotationalFem::assemble_warped_system() {
 CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double tolerance,
                                                     const StepBudget& may_continue) {
   const int chunks = node_chunks();
-  const auto node_range = [&](int chunk) {
-    return std::pair{chunk * kNodesPerChunk, std::min(node_count(), (chunk + 1) * kNodesPerChunk)};
-  };
   // Start: r = b − K u on free rows. The free system is K_ff u_f = b_f − K_fh u_h; its rhs norm
   // (the same product restricted to held columns) is the residual's yardstick, so a warm start
   // that is already close does not make the tolerance stricter.
@@ -875,8 +866,8 @@ CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::Vec
   const int chunks = tet_chunks();
   for_each_chunk(chunks, [&](int chunk) {
     int inverted = 0, with_free_node = 0;
-    const int end = std::min(tet_count(), (chunk + 1) * kTetsPerChunk);
-    for (int t = chunk * kTetsPerChunk; t < end; ++t) {
+    const auto [begin, end] = tet_range(chunk);
+    for (int t = begin; t < end; ++t) {
       const auto& tet = tets_[t];
       // Not `<= 0`: a NaN volume counts as inverted too.
       if (deformed_edges(tet, rest_, u).determinant() > 0.0) continue;

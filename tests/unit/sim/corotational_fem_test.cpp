@@ -501,6 +501,17 @@ TEST(CorotationalFem, KeptRotationsSettleWithinTheirToleranceOfTheConvergedAnswe
       100 * coarse.last_frames_updated);
 }
 
+// Displacements turning each node about the vertical axis by angle_rad(its rest position).
+template <typename AngleAt>
+Eigen::VectorXd twisted_about_z(const std::vector<Eigen::Vector3d>& rest, AngleAt angle_rad) {
+  Eigen::VectorXd u(3 * static_cast<Eigen::Index>(rest.size()));
+  for (std::size_t n = 0; n < rest.size(); ++n) {
+    const Eigen::AngleAxisd turn(angle_rad(rest[n]), Eigen::Vector3d::UnitZ());
+    u.segment<3>(3 * static_cast<Eigen::Index>(n)) = turn * rest[n] - rest[n];
+  }
+  return u;
+}
+
 // With a cap on a frame's new rotations, the most turned tets take theirs first. The block,
 // handed a shape twisted about the vertical by an angle growing along x (0 to 0.3 rad), and its
 // rotations kept from rest: a frame extracts a tenth of them, and every tet it chose (with no
@@ -518,12 +529,8 @@ TEST(CorotationalFem, ACappedFrameTakesTheMostTurnedTetsFirst) {
     x_max = std::max(x_max, p.x());
   }
   const auto twist_rad = [&](double x) { return 0.3 * (x - x_min) / (x_max - x_min); };
-  Eigen::VectorXd twisted(3 * fem.node_count());
-  for (int n = 0; n < fem.node_count(); ++n) {
-    const Eigen::AngleAxisd turn(twist_rad(rest[n].x()), Eigen::Vector3d::UnitZ());
-    twisted.segment<3>(3 * n) = turn * rest[n] - rest[n];
-  }
-  fem.set_displacements_mm(twisted);
+  fem.set_displacements_mm(
+      twisted_about_z(rest, [&](const Eigen::Vector3d& p) { return twist_rad(p.x()); }));
   fem.step(nullptr, 1.0 / 30);
   const int cap = static_cast<int>(std::ceil(0.1 * fem.tet_count()));
   // Every tet turned past the tolerance: the cap's worth, and the tets beside the fixed face that
@@ -567,11 +574,10 @@ TEST(CorotationalFem, LostRotationsAreTakenOutsideTheCapAndStarveNoOther) {
   settings.max_rotation_updates_fraction = 0.02;
   CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
   const auto& rest = b.mesh.rest_positions_mm;
-  Eigen::VectorXd shape(3 * fem.node_count());
+  Eigen::VectorXd shape = twisted_about_z(rest, [](const Eigen::Vector3d& p) {
+    return 0.3 * (p.x() + 20.0) / 40.0 * (20.0 - p.z()) / 20.0;
+  });
   for (int n = 0; n < fem.node_count(); ++n) {
-    const double angle = 0.3 * (rest[n].x() + 20.0) / 40.0 * (20.0 - rest[n].z()) / 20.0;
-    const Eigen::AngleAxisd turn(angle, Eigen::Vector3d::UnitZ());
-    shape.segment<3>(3 * n) = turn * rest[n] - rest[n];
     if (rest[n].z() == 0.0) shape[3 * n + 2] += 5.0;  // the skin layer through the next (2.5 mm)
   }
   std::vector<Eigen::Vector3d> x(rest.size());

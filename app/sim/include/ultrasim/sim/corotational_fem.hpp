@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "ultrasim/geometry/tet_mesh.hpp"
@@ -205,14 +206,13 @@ class CorotationalFem final : public DeformationEngine {
   Eigen::Matrix3d deformation_gradient(int t) const;
   // Takes f's rotation for tet t, with its rotated gradients and element rhs.
   void extract_rotation(int t, const Eigen::Matrix3d& f);
-  // How each block of K_R above the diagonal in a row a moved tet holds is brought up to date:
-  // node_moved_ and block_update_ from rotation_moved_ (every block summed again when every tet
-  // moved).
-  void plan_block_updates(bool every_tet_moved);
+  // How each block of K_R above the diagonal in a row a moved tet holds is brought up to date
+  // (node_moved_ and block_update_ from rotation_moved_; every block summed again when every
+  // tet moved), and the moved tets' terms taken out of the blocks that swap them, with the
+  // rotations the tets still hold: before their new rotations are extracted.
+  void prepare_block_updates(bool every_tet_moved);
   // Σ of block k's terms from the tets marked in rotation_moved_, with their rotated gradients.
   Eigen::Matrix3d moved_terms(int k) const;
-  // Subtracts the moved tets' terms (with their old rotations) from the blocks that swap terms.
-  void take_out_moved_terms();
   // Brings the blocks of K_R with a tet marked in rotation_moved_ up to date (as planned: its
   // moved tets' new terms added, or summed again), and the rhs and the preconditioner of the
   // nodes such a tet holds (every node's after a load changed).
@@ -245,6 +245,9 @@ class CorotationalFem final : public DeformationEngine {
   void for_each_chunk(int chunks, Body&& body) const;
   int tet_chunks() const;
   int node_chunks() const;
+  // The tets or nodes of a chunk: [first, end).
+  std::pair<int, int> tet_range(int chunk) const;
+  std::pair<int, int> node_range(int chunk) const;
   // Sums chunk_sums_[0, chunks) in chunk order: the same order on any thread count.
   Eigen::Vector4d sum_chunks(int chunks) const;
 
