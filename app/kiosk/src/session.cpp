@@ -134,22 +134,23 @@ void Session::switch_method(sim::EngineKind method) {
   }
   engine_ = slot.get();
   stitched_ = dynamic_cast<sim::StitchedVolume*>(engine_);
-  refused_depth_mm_.reset();  // another method may take the press
+  refused_press_.reset();  // another method may take the press
 }
 
-std::optional<sim::ProbeCollider> Session::probe_collider() const {
-  if (!pose_) return std::nullopt;
+std::optional<sim::ProbeCollider> Session::probe_collider(
+    const std::optional<hal::PoseSample>& pose) const {
+  if (!pose) return std::nullopt;
   const auto& c = settings_.collider;
-  const Eigen::Vector3d beam = pose_->orientation * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d beam = pose->orientation * Eigen::Vector3d::UnitZ();
   if (c.shape == sim::ProbeContactShape::kSphere) {
     return sim::ProbeCollider::sphere(
-        sim::SphereCollider::behind_face(pose_->position_mm, beam, c.radius_mm), beam);
+        sim::SphereCollider::behind_face(pose->position_mm, beam, c.radius_mm), beam);
   }
   if (probe_.kind == imaging::ProbeKind::kConvex) {
-    return sim::ProbeCollider::convex_face(pose_->position_mm, pose_->orientation, probe_.radius_mm,
+    return sim::ProbeCollider::convex_face(pose->position_mm, pose->orientation, probe_.radius_mm,
                                            c.face_thickness_mm, c.edge_radius_mm);
   }
-  return sim::ProbeCollider::linear_face(pose_->position_mm, pose_->orientation, probe_.width_mm,
+  return sim::ProbeCollider::linear_face(pose->position_mm, pose->orientation, probe_.width_mm,
                                          c.face_thickness_mm, c.edge_radius_mm);
 }
 
@@ -214,22 +215,16 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   // Dynamic methods integrate over the time since the last frame (a 60 Hz frame at first, and
   // never more than 0.1 s: a stalled frame must not become one giant step).
   const double frame_dt_s = seconds_since(last_update_us_, t0, 1.0 / 60.0, 1e-4, 0.1);
-  std::optional<sim::ProbeCollider> collider = probe_collider();
-  // A press the method refused as too deep for it (Recovery::kKeptLastGood) is not tried again
-  // every frame while the probe stays as deep: each try costs the method several attempts (a
-  // frame of up to five frames' work) to show the same last good shape. Until the probe comes
-  // back up, the tissue is pressed where the method last took the probe, and a new try is made
-  // a few times a second (a sweep may find a pose the method can take).
-  constexpr double kRetryAfterLiftMm = 0.5;
-  constexpr int kRetryEveryFrames = 15;
-  if (refused_depth_mm_ &&
-      (!collider || pose_->position_mm.z() < *refused_depth_mm_ - kRetryAfterLiftMm)) {
-    refused_depth_mm_.reset();
+  // While the method refuses the probe's pose, the tissue is pressed where it last took the
+  // probe (RefusedPress).
+  std::optional<hal::PoseSample> pressing = pose_;
+  if (pose_) {
+    pressing = refused_press_.pose_for(*pose_);
+    outcome.probe_held = refused_press_.holding();
+  } else {
+    refused_press_.reset();
   }
-  if (refused_depth_mm_ && accepted_collider_ && ++frames_since_refusal_ < kRetryEveryFrames) {
-    collider = accepted_collider_;
-    outcome.probe_held = true;
-  }
+  const std::optional<sim::ProbeCollider> collider = probe_collider(pressing);
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
   // The method's work that can wait (CG iterations, sub-volumes the probe does not touch) goes
   // on only while a piece as long as the last still ends by the deadline (the first is measured
@@ -257,19 +252,14 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   } else {
     outcome.sim = engine_->step_within(probe, frame_dt_s, budget);
   }
-  if (!outcome.probe_held) {
+  if (pose_) {
     // Kept last good because the budget ran out before smaller steps were tried is no verdict
     // on the press: the next frame tries again, as after any failed try.
-    if (outcome.sim.recovery == sim::Recovery::kKeptLastGood && collider &&
-        !outcome.sim.cut_short) {
-      refused_depth_mm_ = pose_->position_mm.z();
-      frames_since_refusal_ = 0;
-    } else if (!outcome.sim.diverged) {
-      accepted_collider_ = collider;
-      refused_depth_mm_.reset();
-    } else {
-      frames_since_refusal_ = 0;  // a try that failed otherwise waits as a refusal does
-    }
+    const sim::EngineStepStats& step = outcome.sim;
+    refused_press_.record(step.recovery == sim::Recovery::kKeptLastGood && !step.cut_short
+                              ? PressVerdict::kRefused
+                          : step.diverged ? PressVerdict::kUndecided
+                                          : PressVerdict::kTaken);
   }
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;
@@ -318,7 +308,7 @@ void Session::update_view() {
   const double frame_s = static_cast<double>(settings_.frame.budget_us) * 1e-6;
   const double skin_dt_s =
       seconds_since(last_view_us_, clock_.now_us(), frame_s, frame_s, std::max(frame_s, 0.1));
-  const std::optional<sim::ProbeCollider> collider = probe_collider();
+  const std::optional<sim::ProbeCollider> collider = probe_collider(pose_);
   skin_.step(deformed, collider ? &*collider : nullptr, skin_dt_s);
   surface_views_.assign(structures_.views().begin(), structures_.views().end());
   surface_views_.push_back(skin_.view());

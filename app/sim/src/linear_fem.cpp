@@ -367,8 +367,7 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
     out.diverged = true;
     out.cause = DivergenceCause::kNonFinite;
     out.recovery = Recovery::kReset;
-  } else if (static_cast<double>(out.inverted_tets) >
-             settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
+  } else if (inverts_too_many(out.inverted_tets)) {
     // Pressed through the tissue: a linear model's answer there is garbage. Show the last good.
     out.diverged = true;
     out.cause = DivergenceCause::kInverted;
@@ -380,6 +379,18 @@ EngineStepStats LinearFem::step_within(const ProbeCollider* probe, double /*fram
     update_deformed();
   }
   return out;
+}
+
+bool LinearFem::inverts_too_many(int inverted_tets) {
+  const double limit = settings_.max_inverted_fraction * static_cast<double>(tets_.size());
+  if (static_cast<double>(inverted_tets) <= limit) return false;
+  // Counted only here, over the limit: the start's shape for a moment.
+  u_.swap(last_good_u_);
+  update_deformed();
+  const int at_start = geometry::count_inverted_tets(tets_, deformed_);
+  u_.swap(last_good_u_);
+  update_deformed();
+  return inverted_tets > at_start;
 }
 
 void LinearFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {

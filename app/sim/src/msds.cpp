@@ -591,6 +591,7 @@ EngineStepStats MsdsEngine::step_within(const ProbeCollider* probe, double frame
 EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
   position_frame_start_.copy_from(position_);
   velocity_frame_start_.copy_from(velocity_);
+  inverted_at_frame_start_ = -1;  // counted if a try goes over the limit
   // The frame's simulated time, steps × dt, in the explicit engine's steps or in fewer, larger
   // implicit ones.
   const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
@@ -630,6 +631,8 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
       reset_to_rest();
       stats.recovery = Recovery::kReset;
     }
+  } else {
+    stats.inverted_tets = attempt.inverted_tets;
   }
   stats.iterations = attempt.iterations;
   stats.relative_residual = attempt.relative_residual;
@@ -674,13 +677,15 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     if (out_of_time) cut_short_ = true;
     const bool last = s + 1 == steps || out_of_time;
     if (!last && (s == 0 || (s + 1) % check_every != 0)) continue;
-    out.inverted_tets = count_inverted_tets();
+    out.inverted_tets = count_inverted_tets(position_);
     // A few tets folded under the probe's rim are the lattice's weakness, not a blow-up; many
-    // are garbage (as for the FEM engines: max_inverted_fraction of all tets). A node running
+    // are garbage (as for the FEM engines: max_inverted_fraction of all tets, or the folds the
+    // frame started with, which it may keep while it unfolds them). A node running
     // away is too (build_speed_ceilings): like a fold, smaller steps are tried while there is
     // time, then the frame keeps its start, at rest (and the node is weighed: run_frame).
     if (static_cast<double>(out.inverted_tets) >
-        settings_.max_inverted_fraction * static_cast<double>(tets_.size())) {
+            settings_.max_inverted_fraction * static_cast<double>(tets_.size()) &&
+        out.inverted_tets > inverted_at_frame_start()) {
       out.cause = DivergenceCause::kInverted;
       return out;
     }
@@ -694,11 +699,16 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
   return out;
 }
 
-int MsdsEngine::count_inverted_tets() {
+int MsdsEngine::inverted_at_frame_start() {
+  if (inverted_at_frame_start_ < 0) inverted_at_frame_start_ = count_inverted_tets(position_frame_start_);
+  return inverted_at_frame_start_;
+}
+
+int MsdsEngine::count_inverted_tets(const NodeVectors& at) {
   const int chunks = tet_lattice_->chunk_count();
-  const double* x = position_.x.data();
-  const double* y = position_.y.data();
-  const double* z = position_.z.data();
+  const double* x = at.x.data();
+  const double* y = at.y.data();
+  const double* z = at.z.data();
   for_each_chunk(chunks,
                  [&](int chunk) { partial_a_[chunk] = tet_lattice_->count(chunk, x, y, z); });
   return static_cast<int>(sum_partials(partial_a_, chunks));

@@ -352,6 +352,31 @@ TEST_F(StitchedSessionTest, APastDeadlineStepsOnlyTheTouchedSubVolumes) {
   EXPECT_GT(on_time.stitch->sub_volumes_stepped, on_time.stitch->sub_volumes_touched);
 }
 
+// A press its method refuses (here seams opening past a tight [stitching] refuse_gap_mm) holds
+// the tissue where it last took the probe, and tries part of the way on: the tissue follows as
+// deep as the method takes it instead of staying at the depth of the first refusal (where it
+// stayed while the probe was held, before RefusedPress).
+TEST_F(StitchedSessionTest, ARefusedPressIsFollowedAsDeepAsTheMethodTakesIt) {
+  settings_.stitching.refuse_gap_mm = 0.06;
+  Session session(stitched_, settings_, clock_, jobs_);
+  double force_at_40 = 0.0;
+  int held = 0;
+  FrameOutcome outcome;
+  for (int f = 0; f < 120; ++f) {
+    outcome = session.simulate(pose_at(std::min(3.0, 0.1 * f)));
+    held += outcome.probe_held;
+    ASSERT_TRUE(outcome.stitch.has_value());
+    if (!outcome.sim.diverged) {
+      ASSERT_LE(outcome.stitch->max_gap_mm, 0.06);
+    }
+    if (f == 40) force_at_40 = outcome.sim.contact_force_n;
+  }
+  EXPECT_GT(held, 60) << "the press was refused and held";
+  EXPECT_TRUE(outcome.in_contact);
+  // The probe at 3 mm since frame 30: 2.72 N at frame 40, 5.77 N at 120 (2.64 N before).
+  EXPECT_GT(outcome.sim.contact_force_n, 1.5 * force_at_40);
+}
+
 TEST_F(SessionTest, OutOfRangeControlsAreRefusedAndChangeNothing) {
   Session session(tissue_, settings_, clock_, jobs_);
   const BscanControls before = session.controls();

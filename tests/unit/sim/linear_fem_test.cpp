@@ -321,6 +321,40 @@ TEST(LinearFem, APressThroughTheTissueKeepsTheLastGoodShapeAndSaysTetsInverted) 
   EXPECT_EQ(fem.displacements_mm(), good);
 }
 
+// A shape handed over folded past the limit (by the corotational FEM, say, switched live) may keep
+// its folds while the CG unfolds them, not add to them; refused every frame, it kept them.
+TEST(LinearFem, AFoldedShapeHandedOverIsKeptWhileItUnfoldsNotRefused) {
+  Block b = make_block();
+  FemSettings s = pcg_settings(1, 1e-10);  // one iteration a frame: the folds last a few
+  s.max_inverted_fraction = 0.0;           // any fold is over the limit
+  LinearFem fem(b.mesh, b.materials, b.fixed, s);
+  // The skin's middle pushed through the layers below it (the block is 20 mm deep, 5 mm a layer).
+  Eigen::VectorXd folded = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& p = b.mesh.rest_positions_mm[n];
+    if (p.z() < 1e-9 && std::abs(p.x()) < 5.1 && std::abs(p.y()) < 5.1) folded[3 * n + 2] = 14.0;
+  }
+  fem.set_displacements_mm(folded);
+  int inverted = geometry::count_inverted_tets(b.mesh.tets, fem.deformed_positions_mm());
+  ASSERT_GT(inverted, 0);
+  int frames = 0;
+  for (int frame = 0; frame < 20 && inverted > 0; ++frame) {
+    const EngineStepStats stats = fem.step(nullptr, 1.0 / 60);
+    ASSERT_NE(stats.recovery, Recovery::kKeptLastGood) << "frame " << frame;
+    ASSERT_LE(stats.inverted_tets, inverted) << "frame " << frame;
+    inverted = stats.inverted_tets;
+    frames = frame + 1;
+  }
+  EXPECT_EQ(inverted, 0) << "unfolded";
+  EXPECT_GT(frames, 1) << "unfolded at once: the test would mean nothing";
+  // A frame that folds more than it started with is still refused, the last good shape kept.
+  const Eigen::VectorXd good = fem.displacements_mm();
+  const ProbeCollider through =
+      ProbeCollider::sphere(SphereCollider::behind_face({0, 0, 25.0}, {0, 0, 1}, 15.0));
+  EXPECT_EQ(fem.step(&through, 1.0 / 60).recovery, Recovery::kKeptLastGood);
+  EXPECT_EQ(fem.displacements_mm(), good);
+}
+
 TEST(LinearFem, StepDoesNotProduceNonFiniteValues) {
   Block b = make_block();
   LinearFem fem(b.mesh, b.materials, b.fixed, FemSettings{});

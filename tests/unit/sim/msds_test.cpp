@@ -543,6 +543,39 @@ TEST(MsdsRecovery, ProbeDeeperThanTheTissueReportsInvertedTetsAndNeverNaN) {
   }
 }
 
+// A shape handed over folded past the limit (the corotational FEM keeps tets pressed flat under a
+// probe; switched live, the MSDS gets them) may keep its folds while the frames unfold it, not
+// add to them. Refused every frame instead, it kept them until the method changed (the large
+// soak: the implicit MSDS refused 274 frames in a row).
+TEST(MsdsRecovery, AFoldedShapeHandedOverIsKeptWhileItUnfoldsNotRefused) {
+  const Block b = make_block();
+  const int skin_centre = node_at(b, {0, 0, 0});
+  ASSERT_GE(skin_centre, 0);
+  Eigen::VectorXd folded = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  folded[3 * skin_centre + 2] = 14.0;  // through the two nodes below it
+  for (auto integrator : {kImplicit, kExplicit}) {
+    MsdsSettings s;  // the kiosk's (the explicit one's masses scaled for its step)
+    s.max_inverted_fraction = 0.0;  // any fold is over the limit
+    MsdsEngine engine = make_engine(b, integrator, s);
+    engine.set_displacements_mm(folded);
+    int inverted = engine.inverted_tet_count();
+    ASSERT_GT(inverted, 0);
+    int frame = 0;
+    for (; frame < 200 && inverted > 0; ++frame) {
+      const EngineStepStats stats = engine.step(nullptr, 1.0 / 30);
+      ASSERT_NE(stats.recovery, Recovery::kKeptLastGood) << engine.name() << " frame " << frame;
+      ASSERT_LE(engine.inverted_tet_count(), inverted) << engine.name() << " frame " << frame;
+      EXPECT_EQ(stats.inverted_tets, engine.inverted_tet_count()) << engine.name();
+      inverted = engine.inverted_tet_count();
+    }
+    EXPECT_EQ(inverted, 0) << engine.name() << ": unfolded";
+    std::printf("%s: unfolded in %d frames\n", engine.name().data(), frame);
+    // A frame that folds more than it started with is still refused.
+    const ProbeCollider through = press(25.0);
+    EXPECT_EQ(engine.step(&through, 1.0 / 30).recovery, Recovery::kKeptLastGood) << engine.name();
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // A press, and the job system.
 
@@ -630,14 +663,16 @@ TEST(MsdsPress, AProbeJumpThatFoldsTetsForOneStepIsNotADivergence) {
   EXPECT_FALSE(stats.diverged);
   // Held in all three axes (the published stick), the springs unfold them within the frame.
   // Held by Coulomb's law, the skin nodes also slide outwards along the sphere as they unfold,
-  // both layers caught on it: the step's count is clear from the next frame on, and the last
-  // tet squeezed flat between them (its volume's sign decided by rounding: the vectorised count
-  // calls it positive, the plain one zero) opens by the eleventh.
+  // both layers caught on it: up to 3 tets stay folded over the next frames, within the limit
+  // (each frame reports them), and the last tet squeezed flat between them (its volume's sign
+  // decided by rounding: the vectorised count calls it positive, the plain one zero) opens by
+  // the eleventh.
+  const double limit = engine.settings().max_inverted_fraction * b.mesh.tet_count();
   int frames = 1;
   for (; frames < 12 && engine.inverted_tet_count() > 0; ++frames) {
     const auto next = engine.step(&probe, 1.0 / 30);
     EXPECT_FALSE(next.diverged);
-    EXPECT_EQ(next.inverted_tets, 0);
+    EXPECT_LE(next.inverted_tets, limit);
   }
   EXPECT_EQ(engine.inverted_tet_count(), 0);
   MsdsSettings stick_settings = physical_masses();

@@ -19,6 +19,7 @@
 #include "ultrasim/imaging/fast_slicer.hpp"
 #include "ultrasim/imaging/published_slicer.hpp"
 #include "ultrasim/kiosk/deformable_skin.hpp"
+#include "ultrasim/kiosk/refused_press.hpp"
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/render/png_writer.hpp"
@@ -35,8 +36,8 @@ struct FrameOutcome {
   bool in_contact = false;     // the probe touches the tissue, so there is an image
   sim::EngineStepStats sim;
   std::optional<sim::StitchStepStats> stitch;  // when the method runs stitched
-  // The method refused a press as too deep for it, and the probe is still that deep: the tissue
-  // was pressed where the method last took the probe (see Session::simulate).
+  // The method refused the probe's pose since it last took it: the tissue was pressed where it
+  // last took the probe, backed off or part of the way back to the probe (RefusedPress).
   bool probe_held = false;
 };
 
@@ -133,8 +134,9 @@ class Session {
   // How deep the skin is dented under the probe now, mm (0 at rest).
   double skin_dent_mm() const { return skin_.surface().max_dent_mm(); }
 
-  // The probe as the tissue feels it, at the last good pose (nullopt before any).
-  std::optional<sim::ProbeCollider> probe_collider() const;
+  // The probe as the tissue feels it at `pose` (nullopt: none).
+  std::optional<sim::ProbeCollider> probe_collider(
+      const std::optional<hal::PoseSample>& pose) const;
 
  private:
   const TissueCase& tissue_;
@@ -162,11 +164,7 @@ class Session {
   std::optional<imaging::PublishedSlicer> published_slicer_;  // raster grids, slicer = published
   std::optional<hal::PoseSample> tracked_pose_;               // last good sample
   std::optional<hal::PoseSample> pose_;  // tracked_pose_ pressed in by controls_.compression_mm
-  // Where the method last took the probe, and the face's depth (z) at the press it refused
-  // since, with the frames since that refusal.
-  std::optional<sim::ProbeCollider> accepted_collider_;
-  std::optional<double> refused_depth_mm_;
-  int frames_since_refusal_ = 0;
+  RefusedPress refused_press_;  // where the tissue is pressed while its method refuses the probe
   bool in_contact_ = false;
   bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;

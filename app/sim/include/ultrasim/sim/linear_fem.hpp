@@ -39,7 +39,9 @@ struct FemStepStats {
 // Units: positions mm, moduli kPa, so K u is in mN. With a job system, each CG product runs in
 // row bands on its threads (the rest of a step on the caller); step() does not allocate.
 // As a DeformationEngine (the kiosk's method (a)): probe contact by any ProbeCollider shape, and a
-// press so deep that more than max_inverted_fraction of the tets invert keeps the last good shape.
+// press so deep that more than max_inverted_fraction of the tets invert keeps the last good shape
+// (a shape that starts over the limit, folded by another engine, may keep its folds while the
+// CG unfolds them, not add to them: else every frame would be refused and keep them).
 class LinearFem final : public DeformationEngine {
  public:
   // tet_materials: one material per tet; fixed_nodes: one flag per node (nonzero = fixed).
@@ -155,6 +157,9 @@ class LinearFem final : public DeformationEngine {
   // Per-step state and scratch, sized once.
   Eigen::VectorXd u_, free_mask_, r_, z_, p_, q_;
   std::vector<Eigen::Vector3d> deformed_;
+  // Whether the step's shape (u_) has more inverted tets than the limit and than the shape it
+  // started from (last_good_u_), which it may keep.
+  bool inverts_too_many(int inverted_tets);
 };
 
 // The global stiffness (3·nodes square, node-major x,y,z; kPa·mm, so K u is in mN) of linear tets

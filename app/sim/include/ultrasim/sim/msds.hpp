@@ -81,7 +81,10 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 // folding tets under its rim, which no step size fixes). A node that ran away is weighed: its
 // mass scaled again for its springs as stretched at the frame's start, for the engine's life
 // (node_masses_kg() and mass_scale() change with it). All set diverged and cause; inverted_tets
-// counts the first attempt's inverted tets (0 when accepted: an accepted frame has none). The
+// counts the first attempt's inverted tets (an accepted frame's, its own). A shape that starts
+// a frame over the limit (folds handed over by another engine, or kept) may keep that many
+// while the frames unfold it, not add to them: else every frame would be refused and the folds
+// could never unfold (as the corotational FEM). The
 // displacements shown are always finite. Each frame starts again at time_step_s: a step past the
 // limit is caught again, every few frames.
 //
@@ -270,7 +273,10 @@ class MsdsEngine final : public DeformationEngine {
   const StepBudget* budget_ = nullptr;
   bool cut_short_ = false;
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
-  int count_inverted_tets();                 // inverted_tet_count() on the job system
+  int count_inverted_tets(const NodeVectors& at);  // inverted_tet_count() on the job system
+  // Inverted tets in the frame's starting shape (what it may keep), counted once a frame when
+  // first asked.
+  int inverted_at_frame_start();
   bool outruns_its_springs(int node) const;  // past its speed_ceiling_squared_
   bool a_node_outruns_its_springs();         // any node, on the job system
   void weigh_runaway_nodes();                // mass scaled again for those nodes' stretched springs
@@ -400,6 +406,7 @@ class MsdsEngine final : public DeformationEngine {
 
   // Per-step and per-frame scratch, sized once.
   NodeVectors position_frame_start_, velocity_frame_start_;
+  int inverted_at_frame_start_ = -1;  // -1: not counted this frame
   std::vector<NodeContact> contacts_;        // in node order
   std::vector<std::uint8_t> held_;           // contact held on the probe surface this step (padded)
   std::vector<std::uint8_t> touching_only_;  // contact on the surface, not inside: may be let go
