@@ -42,6 +42,15 @@ hal::PoseSample RefusedPress::toward_probe(const hal::PoseSample& probe) {
 }
 
 void RefusedPress::record(PressVerdict verdict) {
+  if (verdict == PressVerdict::kOutOfTime) {
+    // Every frame out of time on the same press would keep the last good shape for as long as
+    // the probe stays: once is bad luck, twice a refusal.
+    const bool probes_own = attempt_ == Attempt::kProbe;
+    verdict =
+        !probes_own || ++probe_out_of_time_ > 1 ? PressVerdict::kRefused : PressVerdict::kUndecided;
+  } else {
+    probe_out_of_time_ = 0;
+  }
   switch (attempt_) {
     case Attempt::kProbe:
       if (verdict == PressVerdict::kTaken) {

@@ -197,6 +197,23 @@ FrameOutcome Session::update(const std::optional<hal::PoseSample>& sample) {
   return outcome;
 }
 
+namespace {
+
+PressVerdict press_verdict(const sim::EngineStepStats& step) {
+  switch (step.recovery) {
+    case sim::Recovery::kKeptLastGood:
+      return step.cut_short ? PressVerdict::kOutOfTime : PressVerdict::kRefused;
+    case sim::Recovery::kReset:
+      return PressVerdict::kUndecided;
+    case sim::Recovery::kNone:
+    case sim::Recovery::kSubstepped:
+      break;
+  }
+  return PressVerdict::kTaken;
+}
+
+}  // namespace
+
 FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
                                hal::TimestampUs deadline_us) {
   FrameOutcome outcome;
@@ -252,15 +269,7 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   } else {
     outcome.sim = engine_->step_within(probe, frame_dt_s, budget);
   }
-  if (pose_) {
-    // Kept last good because the budget ran out before smaller steps were tried is no verdict
-    // on the press: the next frame tries again, as after any failed try.
-    const sim::EngineStepStats& step = outcome.sim;
-    refused_press_.record(step.recovery == sim::Recovery::kKeptLastGood && !step.cut_short
-                              ? PressVerdict::kRefused
-                          : step.diverged ? PressVerdict::kUndecided
-                                          : PressVerdict::kTaken);
-  }
+  if (pose_) refused_press_.record(press_verdict(outcome.sim));
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   in_contact_ = outcome.sim.contact_nodes > 0;
   outcome.in_contact = in_contact_;

@@ -700,7 +700,8 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
 }
 
 int MsdsEngine::inverted_at_frame_start() {
-  if (inverted_at_frame_start_ < 0) inverted_at_frame_start_ = count_inverted_tets(position_frame_start_);
+  if (inverted_at_frame_start_ < 0)
+    inverted_at_frame_start_ = count_inverted_tets(position_frame_start_);
   return inverted_at_frame_start_;
 }
 

@@ -168,5 +168,34 @@ TEST(RefusedPress, NoVerdictChangesNothing) {
   EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(), 4.0);
 }
 
+// Out of time before smaller steps were tried, a method keeps its last good shape: once is no
+// verdict on the probe's pose, but every frame so (a press the method takes only in halved
+// steps, which the frame never has time for) kept the tissue still while the probe stayed. The
+// second in a row is a refusal; a held pose out of time backs off as a refused one does.
+TEST(RefusedPress, OutOfTimeTwiceInARowIsARefusalAndAHeldPoseOutOfTimeBacksOff) {
+  RefusedPress press;
+  for (int f = 0; f <= 4; ++f) {
+    press.pose_for(probe_at(0.0, f));
+    press.record(PressVerdict::kTaken);
+  }
+  press.pose_for(probe_at(0.0, 5.0));
+  press.record(PressVerdict::kOutOfTime);
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(), 5.0) << "tried again";
+  EXPECT_FALSE(press.holding());
+  press.record(PressVerdict::kOutOfTime);
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(), 4.0) << "held";
+  EXPECT_TRUE(press.holding());
+  press.record(PressVerdict::kOutOfTime);
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(),
+            4.0 - RefusedPress::kFirstBackOffMm);
+  // A reset (no verdict) changes nothing; taken, the held pose stays.
+  press.record(PressVerdict::kUndecided);
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(),
+            4.0 - RefusedPress::kFirstBackOffMm);
+  press.record(PressVerdict::kTaken);
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(),
+            4.0 - RefusedPress::kFirstBackOffMm);
+}
+
 }  // namespace
 }  // namespace ultrasim::kiosk

@@ -554,7 +554,7 @@ TEST(MsdsRecovery, AFoldedShapeHandedOverIsKeptWhileItUnfoldsNotRefused) {
   Eigen::VectorXd folded = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
   folded[3 * skin_centre + 2] = 14.0;  // through the two nodes below it
   for (auto integrator : {kImplicit, kExplicit}) {
-    MsdsSettings s;  // the kiosk's (the explicit one's masses scaled for its step)
+    MsdsSettings s;                 // the kiosk's (the explicit one's masses scaled for its step)
     s.max_inverted_fraction = 0.0;  // any fold is over the limit
     MsdsEngine engine = make_engine(b, integrator, s);
     engine.set_displacements_mm(folded);

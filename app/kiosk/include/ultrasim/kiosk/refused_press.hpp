@@ -20,9 +20,12 @@ namespace ultrasim::kiosk {
 
 // A frame's outcome for the pose the tissue was pressed with.
 enum class PressVerdict {
-  kTaken,      // the method accepted the frame
+  kTaken,      // the method's frame stands (re-run in smaller steps or not)
   kRefused,    // the method refused the pose and kept its last good shape
-  kUndecided,  // it failed otherwise (reset, re-run in smaller steps, out of time): no verdict
+  kOutOfTime,  // it kept its last good shape because the frame's time ran out before smaller
+               // steps were tried: no verdict on the probe's own pose the first time (the next
+               // frame tries again), a refusal the second time in a row or for a pose it holds
+  kUndecided,  // it failed otherwise (reset to rest): no verdict
 };
 
 class RefusedPress {
@@ -60,16 +63,17 @@ class RefusedPress {
   hal::PoseSample toward_probe(const hal::PoseSample& probe);
 
   Attempt attempt_ = Attempt::kProbe;
-  hal::PoseSample pose_;                    // this frame's
-  bool probe_pose_tried_ = false;           // pose_ is the probe's own (a try that reached it)
-  bool took_a_pose_ = false;                // taken_ holds one
-  hal::PoseSample taken_;                   // the last pose the tissue took
-  bool refused_ = false;                    // holding since a refusal
-  double refused_depth_mm_ = 0.0;           // the probe's face depth (z) at it
+  hal::PoseSample pose_;           // this frame's
+  bool probe_pose_tried_ = false;  // pose_ is the probe's own (a try that reached it)
+  bool took_a_pose_ = false;       // taken_ holds one
+  hal::PoseSample taken_;          // the last pose the tissue took
+  bool refused_ = false;           // holding since a refusal
+  double refused_depth_mm_ = 0.0;  // the probe's face depth (z) at it
   int frames_since_try_ = 0;
-  double reach_ = kFirstReach;              // the next try's share of the way to the probe
+  double reach_ = kFirstReach;  // the next try's share of the way to the probe
   bool last_try_taken_ = false;
-  double back_off_mm_ = kFirstBackOffMm;    // the next back-off
+  int probe_out_of_time_ = 0;             // frames in a row the probe's own pose ran out of time
+  double back_off_mm_ = kFirstBackOffMm;  // the next back-off
 };
 
 }  // namespace ultrasim::kiosk

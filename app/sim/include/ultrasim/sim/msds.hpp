@@ -406,7 +406,7 @@ class MsdsEngine final : public DeformationEngine {
 
   // Per-step and per-frame scratch, sized once.
   NodeVectors position_frame_start_, velocity_frame_start_;
-  int inverted_at_frame_start_ = -1;  // -1: not counted this frame
+  int inverted_at_frame_start_ = -1;         // -1: not counted this frame
   std::vector<NodeContact> contacts_;        // in node order
   std::vector<std::uint8_t> held_;           // contact held on the probe surface this step (padded)
   std::vector<std::uint8_t> touching_only_;  // contact on the surface, not inside: may be let go
