@@ -12,8 +12,10 @@ const hal::PoseSample& RefusedPress::pose_for(const hal::PoseSample& probe) {
     pose_ = probe;
     return pose_;
   }
-  if (probe.position_mm.z() < refused_depth_mm_ - kRetryAfterLiftMm) {
-    // Lifted: a probe on its way up (or off the skin) must not leave the tissue pressed.
+  if (probe.position_mm.z() <
+      std::max(refused_depth_mm_, taken_.position_mm.z()) - kRetryAfterLiftMm) {
+    // Lifted (above where it was refused, or where the tissue is pressed if deeper): a probe on
+    // its way up, or off the skin, must not leave the tissue pressed deeper.
     attempt_ = Attempt::kToward;
     pose_ = probe;
     probe_pose_tried_ = true;
@@ -25,6 +27,7 @@ const hal::PoseSample& RefusedPress::pose_for(const hal::PoseSample& probe) {
     pose_ = taken_;
     pose_.timestamp_us = probe.timestamp_us;
     pose_.sequence = probe.sequence;
+    pose_.health = probe.health;
   }
   return pose_;
 }
@@ -42,33 +45,39 @@ hal::PoseSample RefusedPress::toward_probe(const hal::PoseSample& probe) {
 }
 
 void RefusedPress::record(PressVerdict verdict) {
+  const bool probes_own_pose = attempt_ == Attempt::kProbe || probe_pose_tried_;
   if (verdict == PressVerdict::kOutOfTime) {
     // Every frame out of time on the same press would keep the last good shape for as long as
     // the probe stays: once is bad luck, twice a refusal.
-    const bool probes_own = attempt_ == Attempt::kProbe;
-    verdict =
-        !probes_own || ++probe_out_of_time_ > 1 ? PressVerdict::kRefused : PressVerdict::kUndecided;
-  } else {
-    probe_out_of_time_ = 0;
+    verdict = !probes_own_pose || ++probe_out_of_time_ > 1 ? PressVerdict::kRefused
+                                                           : PressVerdict::kUndecided;
+  }
+  if (verdict != PressVerdict::kUndecided || !probes_own_pose) probe_out_of_time_ = 0;
+  if (verdict == PressVerdict::kRefused && probes_own_pose) {
+    // The probe's own pose refused (at first, after a lift, or reached by the tries): held from
+    // here, where the tissue last took it.
+    if (!took_a_pose_) return;
+    refused_ = true;
+    refused_depth_mm_ = pose_.position_mm.z();
+    frames_since_try_ = 0;
+    reach_ = kFirstReach;
+    back_off_mm_ = kFirstBackOffMm;
+    backed_off_mm_ = 0.0;
+    last_try_taken_ = false;
+    return;
   }
   switch (attempt_) {
     case Attempt::kProbe:
       if (verdict == PressVerdict::kTaken) {
         taken_ = pose_;
         took_a_pose_ = true;
-      } else if (verdict == PressVerdict::kRefused && took_a_pose_) {
-        refused_ = true;
-        refused_depth_mm_ = pose_.position_mm.z();
-        frames_since_try_ = 0;
-        reach_ = kFirstReach;
-        back_off_mm_ = kFirstBackOffMm;
-        last_try_taken_ = false;
       }
       return;
     case Attempt::kToward:
       if (verdict == PressVerdict::kTaken) {
         taken_ = pose_;
         back_off_mm_ = kFirstBackOffMm;
+        backed_off_mm_ = 0.0;
         if (probe_pose_tried_) {
           refused_ = false;  // caught up
           return;
@@ -78,10 +87,7 @@ void RefusedPress::record(PressVerdict verdict) {
         last_try_taken_ = true;
         return;
       }
-      if (verdict == PressVerdict::kRefused) {
-        if (probe_pose_tried_) refused_depth_mm_ = pose_.position_mm.z();
-        reach_ = std::max(0.5 * reach_, kLeastReach);
-      }
+      if (verdict == PressVerdict::kRefused) reach_ = std::max(0.5 * reach_, kLeastReach);
       // A try refused after one taken tries half as far the next frame; after another refused
       // (or none decided), the tissue waits held.
       frames_since_try_ =
@@ -91,13 +97,33 @@ void RefusedPress::record(PressVerdict verdict) {
     case Attempt::kHeld:
       if (verdict == PressVerdict::kTaken) {
         back_off_mm_ = kFirstBackOffMm;
-      } else if (verdict == PressVerdict::kRefused) {
+        backed_off_mm_ = 0.0;
+      } else if (verdict == PressVerdict::kRefused && backed_off_mm_ < kMostBackOffMm) {
         // The held pose itself is refused: back off along the beam.
-        taken_.position_mm -= back_off_mm_ * (taken_.orientation * Eigen::Vector3d::UnitZ());
+        const double step_mm = std::min(back_off_mm_, kMostBackOffMm - backed_off_mm_);
+        taken_.position_mm -= step_mm * (taken_.orientation * Eigen::Vector3d::UnitZ());
+        backed_off_mm_ += step_mm;
         back_off_mm_ = std::min(2.0 * back_off_mm_, kLargestBackOffMm);
       }
       return;
   }
+}
+
+PressVerdict verdict_of(const sim::EngineStepStats& step) {
+  switch (step.recovery) {
+    case sim::Recovery::kKeptLastGood:
+      // Cut short, as a refusal: the methods that halve their steps (MSDS, corotational FEM)
+      // say the budget ran out before the halved ones were tried. The PCG FEM's CG says only
+      // that its iterations were cut (the usual in the kiosk); its refusal then counts from the
+      // second frame in a row, a frame later.
+      return step.cut_short ? PressVerdict::kOutOfTime : PressVerdict::kRefused;
+    case sim::Recovery::kReset:
+      return PressVerdict::kUndecided;
+    case sim::Recovery::kNone:
+    case sim::Recovery::kSubstepped:
+      break;
+  }
+  return PressVerdict::kTaken;
 }
 
 }  // namespace ultrasim::kiosk

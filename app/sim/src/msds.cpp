@@ -619,6 +619,7 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
     }
     if (attempt.accepted) {
       stats.recovery = Recovery::kSubstepped;
+      stats.inverted_tets = attempt.inverted_tets;
     } else if (!attempt.blew_up || out_of_time) {
       // Smaller steps cannot help a probe that folds tets under its rim (the spring lattice has
       // no volume stiffness to stop it): show the frame's start, at rest, rather than flicker
@@ -680,12 +681,15 @@ MsdsEngine::AttemptResult MsdsEngine::run_attempt(const ProbeCollider* probe, do
     out.inverted_tets = count_inverted_tets(position_);
     // A few tets folded under the probe's rim are the lattice's weakness, not a blow-up; many
     // are garbage (as for the FEM engines: max_inverted_fraction of all tets, or the folds the
-    // frame started with, which it may keep while it unfolds them). A node running
-    // away is too (build_speed_ceilings): like a fold, smaller steps are tried while there is
+    // frame started with, which it may keep while it unfolds them). Only while the probe holds
+    // tissue: untouched, the lattice's folds are its own as it relaxes, and keeping the start
+    // (as folded) would only stop it relaxing (the default case's implicit MSDS refused its
+    // relaxation for 450 frames with ~200 tets folded, its limit). A node running away is
+    // garbage too (build_speed_ceilings): like a fold, smaller steps are tried while there is
     // time, then the frame keeps its start, at rest (and the node is weighed: run_frame).
     if (static_cast<double>(out.inverted_tets) >
             settings_.max_inverted_fraction * static_cast<double>(tets_.size()) &&
-        out.inverted_tets > inverted_at_frame_start()) {
+        held_node_count() > 0 && out.inverted_tets > inverted_at_frame_start()) {
       out.cause = DivergenceCause::kInverted;
       return out;
     }

@@ -197,5 +197,121 @@ TEST(RefusedPress, OutOfTimeTwiceInARowIsARefusalAndAHeldPoseOutOfTimeBacksOff) 
             4.0 - RefusedPress::kFirstBackOffMm);
 }
 
+// Caught up, the tissue follows the probe again: its own pose every frame, wherever it goes.
+TEST(RefusedPress, CaughtUpTheTissueFollowsTheProbeAgain) {
+  RefusedPress press;
+  Method method([](const hal::PoseSample& p, const hal::PoseSample& last) {
+    return (p.position_mm - last.position_mm).norm() <= 1.0;
+  });
+  method.shape = probe_at(0.0, 3.0);
+  method.frame(press, probe_at(0.0, 3.0));
+  for (int f = 0; f < 600 && method.shape.position_mm.y() != 5.0; ++f) {
+    method.frame(press, probe_at(5.0, 3.0));
+  }
+  ASSERT_EQ(method.shape.position_mm.y(), 5.0);
+  for (int f = 1; f <= 5; ++f) {
+    const hal::PoseSample probe = probe_at(5.0 + 0.5 * f, 3.0);
+    EXPECT_EQ(method.frame(press, probe).position_mm, probe.position_mm);
+    EXPECT_FALSE(press.holding());
+  }
+}
+
+// Up by more than RefusedPress::kRetryAfterLiftMm from the refused depth (0.8 mm here, still in
+// the tissue) tries the probe's own pose at once, and the method takes it; refused there, it
+// is held again, from that depth.
+TEST(RefusedPress, ALiftOfLessThanAMillimetreTriesTheProbesPoseAtOnce) {
+  RefusedPress press;
+  Method method = deepest(4.3);
+  for (int f = 0; f <= 5; ++f) method.frame(press, probe_at(0.0, f));
+  ASSERT_EQ(method.refused, 1);
+  EXPECT_EQ(method.frame(press, probe_at(0.0, 4.6)).position_mm.z(), 4.0) << "0.4 mm: held";
+  EXPECT_EQ(method.frame(press, probe_at(0.0, 4.2)).position_mm.z(), 4.2) << "0.8 mm: tried";
+  EXPECT_FALSE(press.holding());
+  EXPECT_EQ(method.shape.position_mm.z(), 4.2);
+  EXPECT_EQ(method.frame(press, probe_at(0.0, 4.5)).position_mm.z(), 4.5);
+  EXPECT_EQ(method.refused, 2);
+  EXPECT_EQ(method.frame(press, probe_at(0.0, 4.5)).position_mm.z(), 4.2) << "held again";
+  EXPECT_EQ(method.frame(press, probe_at(0.0, 3.9)).position_mm.z(), 3.9) << "0.6 mm up";
+}
+
+// The tries took the tissue deeper than the depth first refused (the method takes 8 mm, the
+// probe's own 10 mm refused at 5 mm and then at 10): a probe lifted above the tissue's depth is
+// followed at once, though still below the depth first refused.
+TEST(RefusedPress, AProbeLiftedAboveTheTissuesDepthIsFollowedAtOnce) {
+  RefusedPress press;
+  double limit_mm = 4.3;
+  Method method([&limit_mm](const hal::PoseSample& p, const hal::PoseSample&) {
+    return p.position_mm.z() <= limit_mm;
+  });
+  for (int f = 0; f <= 5; ++f) method.frame(press, probe_at(0.0, f));
+  limit_mm = 8.0;
+  for (int f = 0; f < 300; ++f) method.frame(press, probe_at(0.0, 10.0));
+  ASSERT_GT(method.shape.position_mm.z(), 7.5);
+  const hal::PoseSample lifted = probe_at(0.0, 6.0);
+  EXPECT_EQ(method.frame(press, lifted).position_mm, lifted.position_mm);
+  EXPECT_FALSE(press.holding());
+}
+
+TEST(RefusedPress, AnotherMethodStartsItsOutOfTimeCountAfresh) {
+  RefusedPress press;
+  press.pose_for(probe_at(0.0, 4.0));
+  press.record(PressVerdict::kTaken);
+  press.pose_for(probe_at(0.0, 5.0));
+  press.record(PressVerdict::kOutOfTime);  // once: no verdict
+  press.reset();                           // another method
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(), 5.0);
+  press.record(PressVerdict::kOutOfTime);  // its first
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 5.0)).position_mm.z(), 5.0) << "not held";
+  EXPECT_FALSE(press.holding());
+}
+
+// Taken again, a held pose that is then refused backs off from the first step again; and the
+// back-offs stop after RefusedPress::kMostBackOffMm in all (a safety bound: it once went on 8 mm
+// a frame, 420 mm above the skin after 60 frames,).
+TEST(RefusedPress, BackOffsStartSmallAgainAfterATakenFrameAndStopAtTheirBound) {
+  RefusedPress press;
+  for (int f = 0; f <= 4; ++f) {
+    press.pose_for(probe_at(0.0, 20.0 + f));
+    press.record(PressVerdict::kTaken);
+  }
+  press.pose_for(probe_at(0.0, 30.0));
+  press.record(PressVerdict::kRefused);
+  double z = press.pose_for(probe_at(0.0, 30.0)).position_mm.z();
+  ASSERT_EQ(z, 24.0);
+  press.record(PressVerdict::kRefused);
+  press.pose_for(probe_at(0.0, 30.0));
+  press.record(PressVerdict::kRefused);  // 0.5, then 1 mm
+  z = press.pose_for(probe_at(0.0, 30.0)).position_mm.z();
+  ASSERT_EQ(z, 22.5);
+  press.record(PressVerdict::kTaken);
+  press.pose_for(probe_at(0.0, 30.0));
+  press.record(PressVerdict::kRefused);  // from the first step again
+  EXPECT_EQ(press.pose_for(probe_at(0.0, 30.0)).position_mm.z(), 22.0);
+  // Refused every frame from here (tries toward the probe too): held poses back off to the bound.
+  double highest_held = z;
+  for (int f = 0; f < 60; ++f) {
+    press.record(PressVerdict::kRefused);
+    const hal::PoseSample& pose = press.pose_for(probe_at(0.0, 30.0));
+    if (press.holding() && pose.position_mm.z() < 24.0) {
+      highest_held = std::min(highest_held, pose.position_mm.z());
+    }
+  }
+  EXPECT_EQ(highest_held, 22.5 - RefusedPress::kMostBackOffMm);
+}
+
+TEST(RefusedPress, VerdictsFromTheMethodsStats) {
+  sim::EngineStepStats s;
+  EXPECT_EQ(verdict_of(s), PressVerdict::kTaken);
+  s.diverged = true;
+  s.recovery = sim::Recovery::kSubstepped;  // the frame stands, in smaller steps
+  EXPECT_EQ(verdict_of(s), PressVerdict::kTaken);
+  s.recovery = sim::Recovery::kKeptLastGood;
+  EXPECT_EQ(verdict_of(s), PressVerdict::kRefused);
+  s.cut_short = true;
+  EXPECT_EQ(verdict_of(s), PressVerdict::kOutOfTime);
+  s.recovery = sim::Recovery::kReset;
+  EXPECT_EQ(verdict_of(s), PressVerdict::kUndecided);
+}
+
 }  // namespace
 }  // namespace ultrasim::kiosk

@@ -365,6 +365,9 @@ TEST_F(StitchedSessionTest, ARefusedPressIsFollowedAsDeepAsTheMethodTakesIt) {
   for (int f = 0; f < 120; ++f) {
     outcome = session.simulate(pose_at(std::min(3.0, 0.1 * f)));
     held += outcome.probe_held;
+    if (outcome.probe_held) {
+      ASSERT_TRUE(outcome.in_contact) << "held where refused: the probe presses, an image shows";
+    }
     ASSERT_TRUE(outcome.stitch.has_value());
     if (!outcome.sim.diverged) {
       ASSERT_LE(outcome.stitch->max_gap_mm, 0.06);

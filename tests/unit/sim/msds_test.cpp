@@ -576,6 +576,33 @@ TEST(MsdsRecovery, AFoldedShapeHandedOverIsKeptWhileItUnfoldsNotRefused) {
   }
 }
 
+// Untouched by the probe, a relaxing lattice that folds a tet more than it started with is not
+// refused: keeping the start (as folded) would only stop it relaxing (the default case's
+// implicit MSDS refused its relaxation for 450 frames, ~200 tets folded, its limit). A node
+// inside the block pulled 15 mm sideways: 10 tets folded at the start, 11 on the way back.
+TEST(MsdsRecovery, AnUntouchedLatticeRelaxesThroughFoldsUnrefused) {
+  const Block b = make_block();
+  const int inside = node_at(b, {0, 0, 5});
+  ASSERT_GE(inside, 0);
+  Eigen::VectorXd pulled = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  pulled[3 * inside + 0] = pulled[3 * inside + 1] = 15.0;
+  for (auto integrator : {kImplicit, kExplicit}) {
+    MsdsSettings s;
+    s.max_inverted_fraction = 0.0;  // any fold is over the limit
+    MsdsEngine engine = make_engine(b, integrator, s);
+    engine.set_displacements_mm(pulled);
+    const int start = engine.inverted_tet_count();
+    int most = start;
+    for (int frame = 0; frame < 40; ++frame) {
+      const EngineStepStats stats = engine.step(nullptr, 1.0 / 30);
+      ASSERT_FALSE(stats.diverged) << engine.name() << " frame " << frame;
+      most = std::max(most, engine.inverted_tet_count());
+    }
+    EXPECT_GT(most, start) << engine.name() << ": never folded more than at the start";
+    EXPECT_EQ(engine.inverted_tet_count(), 0) << engine.name();
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // A press, and the job system.
 

@@ -40,8 +40,9 @@ struct FemStepStats {
 // row bands on its threads (the rest of a step on the caller); step() does not allocate.
 // As a DeformationEngine (the kiosk's method (a)): probe contact by any ProbeCollider shape, and a
 // press so deep that more than max_inverted_fraction of the tets invert keeps the last good shape
-// (a shape that starts over the limit, folded by another engine, may keep its folds while the
-// CG unfolds them, not add to them: else every frame would be refused and keep them).
+// (a shape that starts over the limit, folded by another engine, may end a frame with up to as
+// many, not more: else every frame would be refused and keep them while the CG could unfold
+// them).
 class LinearFem final : public DeformationEngine {
  public:
   // tet_materials: one material per tet; fixed_nodes: one flag per node (nonzero = fixed).

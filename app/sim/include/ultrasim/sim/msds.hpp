@@ -81,10 +81,12 @@ double forward_euler_stable_time_step_s(double omega_squared, double damping_per
 // folding tets under its rim, which no step size fixes). A node that ran away is weighed: its
 // mass scaled again for its springs as stretched at the frame's start, for the engine's life
 // (node_masses_kg() and mass_scale() change with it). All set diverged and cause; inverted_tets
-// counts the first attempt's inverted tets (an accepted frame's, its own). A shape that starts
-// a frame over the limit (folds handed over by another engine, or kept) may keep that many
-// while the frames unfold it, not add to them: else every frame would be refused and the folds
-// could never unfold (as the corotational FEM). The
+// counts the first attempt's inverted tets when the frame was kept or reset, the frame's own
+// when it stands. A shape that starts a frame over the limit (folds handed over by another
+// engine, or kept) may end it with up to as many, not more: else every frame would be refused
+// and the folds could never unfold (as the corotational FEM). And the inverted tets refuse a
+// frame only while the probe holds tissue: untouched, a relaxing lattice's folds are its own,
+// and keeping its start would only stop it relaxing. The
 // displacements shown are always finite. Each frame starts again at time_step_s: a step past the
 // limit is caught again, every few frames.
 //
