@@ -920,7 +920,8 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget
   // A shape that starts over the limit (handed over folded by another engine) may keep its folds
   // while the frames unfold it, but not add to them: without this allowance every frame would
   // be thrown away and the shape would stay folded for good.
-  const int allowed = std::max(inversion_limit(), count_inverted(u_before_step_).with_free_node);
+  const InversionCount at_start = count_inverted(u_before_step_);
+  const int allowed = std::max(inversion_limit(), at_start.with_free_node);
   if (finite && inverted.with_free_node <= allowed) return;
   stats.diverged = true;
   stats.cause = finite ? DivergenceCause::kInverted : DivergenceCause::kNonFinite;
@@ -938,12 +939,17 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget
       }
       fraction *= 0.5;
       u_ = u_before_step_ + fraction * q_;
-      if (count_inverted(u_).with_free_node <= allowed) return;
+      const InversionCount cut = count_inverted(u_);
+      if (cut.with_free_node <= allowed) {
+        stats.inverted_tets = cut.total;  // what is shown
+        return;
+      }
     }
   }
   // All the way back: the previous frame's shape. Not rest, which with the probe still deep in
   // the tissue would put nodes far inside it and start from a worse shape than this.
   u_ = u_before_step_;
+  stats.inverted_tets = at_start.total;
 }
 
 void CorotationalFem::update_deformed() {

@@ -93,12 +93,12 @@ class CorotationalFem final : public DeformationEngine {
   // as many as the shape it started from had if that was more (a folded shape handed over by
   // another engine), but no more, and no non-finite value. A frame over that is cut short along
   // its update (1/2, 1/4, ... of it, the first within the limit), or all the way back to the
-  // previous frame's shape, and reports diverged with Recovery::kSubstepped; inverted_tets then
-  // counts the rejected result's inverted tets. A frame within the limit reports its inverted
-  // tets but not diverged. Tets with all four nodes held or sliding on the probe (pressed flat
-  // between contacts) are the constraints' doing: they are counted in inverted_tets but never
-  // against the limit. Nothing resets to rest: with the probe still deep in the tissue, rest would
-  // put nodes far inside it. frame_dt_s is ignored.
+  // previous frame's shape, and reports diverged with Recovery::kSubstepped (cause: inverted);
+  // inverted_tets counts the shape it ends with, as for any frame. A frame within the limit
+  // reports its inverted tets but not diverged. Tets with all four nodes held or sliding on the
+  // probe (pressed flat between contacts) are the constraints' doing: they are counted in
+  // inverted_tets but never against the limit. Nothing resets to rest: with the probe still deep in
+  // the tissue, rest would put nodes far inside it. frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
   // Fewer CG iterations when the budget runs out (one at least); contacts, rotations and the
   // assembly are done every frame. A frame inverted over the limit tries its shorter updates
