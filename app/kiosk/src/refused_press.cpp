@@ -7,13 +7,13 @@ namespace ultrasim::kiosk {
 
 const hal::PoseSample& RefusedPress::pose_for(const hal::PoseSample& probe) {
   probe_pose_tried_ = false;
-  if (!refused_ || !took_a_pose_) {
+  if (!refused_ || !taken_) {
     attempt_ = Attempt::kProbe;
     pose_ = probe;
     return pose_;
   }
   if (probe.position_mm.z() <
-      std::max(refused_depth_mm_, taken_.position_mm.z()) - kRetryAfterLiftMm) {
+      std::max(refused_depth_mm_, taken_->position_mm.z()) - kRetryAfterLiftMm) {
     // Lifted (above where it was refused, or where the tissue is pressed if deeper): a probe on
     // its way up, or off the skin, must not leave the tissue pressed deeper.
     attempt_ = Attempt::kToward;
@@ -24,23 +24,22 @@ const hal::PoseSample& RefusedPress::pose_for(const hal::PoseSample& probe) {
     pose_ = toward_probe(probe);
   } else {
     attempt_ = Attempt::kHeld;
-    pose_ = taken_;
-    pose_.timestamp_us = probe.timestamp_us;
-    pose_.sequence = probe.sequence;
-    pose_.health = probe.health;
+    pose_ = probe;
+    pose_.position_mm = taken_->position_mm;
+    pose_.orientation = taken_->orientation;
   }
   return pose_;
 }
 
 hal::PoseSample RefusedPress::toward_probe(const hal::PoseSample& probe) {
-  const double distance_mm = (probe.position_mm - taken_.position_mm).norm();
-  const double angle_rad = taken_.orientation.angularDistance(probe.orientation);
+  const double distance_mm = (probe.position_mm - taken_->position_mm).norm();
+  const double angle_rad = taken_->orientation.angularDistance(probe.orientation);
   const double reach = distance_mm <= kNearMm && angle_rad <= kNearRad ? 1.0 : reach_;
   probe_pose_tried_ = reach >= 1.0;
   if (probe_pose_tried_) return probe;
   hal::PoseSample pose = probe;
-  pose.position_mm = taken_.position_mm + reach * (probe.position_mm - taken_.position_mm);
-  pose.orientation = taken_.orientation.slerp(reach, probe.orientation);
+  pose.position_mm = taken_->position_mm + reach * (probe.position_mm - taken_->position_mm);
+  pose.orientation = taken_->orientation.slerp(reach, probe.orientation);
   return pose;
 }
 
@@ -56,27 +55,22 @@ void RefusedPress::record(PressVerdict verdict) {
   if (verdict == PressVerdict::kRefused && probes_own_pose) {
     // The probe's own pose refused (at first, after a lift, or reached by the tries): held from
     // here, where the tissue last took it.
-    if (!took_a_pose_) return;
+    if (!taken_) return;
     refused_ = true;
     refused_depth_mm_ = pose_.position_mm.z();
     frames_since_try_ = 0;
     reach_ = kFirstReach;
-    back_off_mm_ = kFirstBackOffMm;
     backed_off_mm_ = 0.0;
     last_try_taken_ = false;
     return;
   }
   switch (attempt_) {
     case Attempt::kProbe:
-      if (verdict == PressVerdict::kTaken) {
-        taken_ = pose_;
-        took_a_pose_ = true;
-      }
+      if (verdict == PressVerdict::kTaken) taken_ = pose_;
       return;
     case Attempt::kToward:
       if (verdict == PressVerdict::kTaken) {
         taken_ = pose_;
-        back_off_mm_ = kFirstBackOffMm;
         backed_off_mm_ = 0.0;
         if (probe_pose_tried_) {
           refused_ = false;  // caught up
@@ -96,14 +90,14 @@ void RefusedPress::record(PressVerdict verdict) {
       return;
     case Attempt::kHeld:
       if (verdict == PressVerdict::kTaken) {
-        back_off_mm_ = kFirstBackOffMm;
         backed_off_mm_ = 0.0;
       } else if (verdict == PressVerdict::kRefused && backed_off_mm_ < kMostBackOffMm) {
-        // The held pose itself is refused: back off along the beam.
-        const double step_mm = std::min(back_off_mm_, kMostBackOffMm - backed_off_mm_);
-        taken_.position_mm -= step_mm * (taken_.orientation * Eigen::Vector3d::UnitZ());
+        // The held pose itself is refused: back off along the beam, each step as far as all
+        // before it and the first (0.5, 1, 2, 4, 8, then 8 mm at a time).
+        const double step_mm = std::min(
+            {backed_off_mm_ + kFirstBackOffMm, kLargestBackOffMm, kMostBackOffMm - backed_off_mm_});
+        taken_->position_mm -= step_mm * (taken_->orientation * Eigen::Vector3d::UnitZ());
         backed_off_mm_ += step_mm;
-        back_off_mm_ = std::min(2.0 * back_off_mm_, kLargestBackOffMm);
       }
       return;
   }

@@ -619,7 +619,6 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
     }
     if (attempt.accepted) {
       stats.recovery = Recovery::kSubstepped;
-      stats.inverted_tets = attempt.inverted_tets;
     } else if (!attempt.blew_up || out_of_time) {
       // Smaller steps cannot help a probe that folds tets under its rim (the spring lattice has
       // no volume stiffness to stop it): show the frame's start, at rest, rather than flicker
@@ -632,9 +631,9 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
       reset_to_rest();
       stats.recovery = Recovery::kReset;
     }
-  } else {
-    stats.inverted_tets = attempt.inverted_tets;
   }
+  // A frame that stands reports its own folds; one kept or reset, its first attempt's.
+  if (attempt.accepted) stats.inverted_tets = attempt.inverted_tets;
   stats.iterations = attempt.iterations;
   stats.relative_residual = attempt.relative_residual;
   stats.contact_nodes = held_node_count();

@@ -15,6 +15,8 @@
 // Lifting the probe off the refused depth (or off the depth the tissue is pressed to, if deeper)
 // tries its own pose at once: the tissue must not stay pressed by a probe that has left.
 
+#include <optional>
+
 #include "ultrasim/hal/pose_sample.hpp"
 #include "ultrasim/sim/engine.hpp"
 
@@ -77,18 +79,16 @@ class RefusedPress {
   hal::PoseSample toward_probe(const hal::PoseSample& probe);
 
   Attempt attempt_ = Attempt::kProbe;
-  hal::PoseSample pose_;           // this frame's
-  bool probe_pose_tried_ = false;  // pose_ is the probe's own (a try that reached it)
-  bool took_a_pose_ = false;       // taken_ holds one
-  hal::PoseSample taken_;          // the last pose the tissue took
-  bool refused_ = false;           // holding since a refusal
-  double refused_depth_mm_ = 0.0;  // the probe's face depth (z) at it
+  hal::PoseSample pose_;                  // this frame's
+  bool probe_pose_tried_ = false;         // pose_ is the probe's own (a try that reached it)
+  std::optional<hal::PoseSample> taken_;  // the last pose the tissue took
+  bool refused_ = false;                  // holding since a refusal
+  double refused_depth_mm_ = 0.0;         // the probe's face depth (z) at it
   int frames_since_try_ = 0;
   double reach_ = kFirstReach;  // the next try's share of the way to the probe
   bool last_try_taken_ = false;
-  int probe_out_of_time_ = 0;             // frames in a row the probe's own pose ran out of time
-  double back_off_mm_ = kFirstBackOffMm;  // the next back-off
-  double backed_off_mm_ = 0.0;            // since the tissue last took a pose
+  int probe_out_of_time_ = 0;   // frames in a row the probe's own pose ran out of time
+  double backed_off_mm_ = 0.0;  // since the tissue last took a pose
 };
 
 }  // namespace ultrasim::kiosk
