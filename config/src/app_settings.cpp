@@ -285,6 +285,11 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "Once a frame, at most this many conjugate-gradient iterations on the stepped "
               "sub-volumes as one piece, within the frame's time: the seams settle around a press "
               "in a few frames (0: the seams alone, as published)."));
+  t.add(field("seam_load_rate", &S::seam_load_rate, RealIn::closed(0.0, 1.0),
+              "Each copy of a shared node remembers the load its seam carries, this fraction of "
+              "its springs' pull added a frame, and its anchor pulls by that much more: the copies "
+              "close up under a steady press (0: the springs alone, as published; the gap is the "
+              "seam's load over k)."));
   t.add(field("refuse_gap_mm", &S::refuse_gap_mm, RealIn::open_closed(0.0, 1e3),
               "A frame that opens a seam wider than this (mm, between copies of a shared node) is "
               "refused as torn; the tissue keeps its last good shape."));

@@ -15,7 +15,8 @@
 // shows what stitching itself costs once converged.
 //   frames:    per frame, for each scenario, method and variant (selective or all; the
 //              overlap's stiffness split among its copies, or each copy at full stiffness as
-//              published; seams exchanged once, twice or 4 times a frame), the displacement error
+//              published; seams exchanged once, twice or 4 times a frame; the springs alone,
+//              without the seams' remembered loads), the displacement error
 //              against one piece (max norm over the largest one-piece displacement), the largest
 //              gap between copies of a shared node before the midpoint display, the strongest seam
 //              pull and the sub-volumes stepped.
@@ -89,10 +90,12 @@ struct Variant {
   int exchanges_per_frame;
   bool coarse_correction;
   int fine_correction_iterations = 0;
+  double seam_load_rate = sim::StitchingSettings{}.seam_load_rate;
 };
 
 constexpr Variant kVariants[] = {
     {"selective", true, true, 1, false},
+    {"springs-alone", true, true, 1, false, 0, 0.0},  // no remembered seam loads, as published
     {"all", false, true, 1, false},
     {"published-overlap", true, false, 1, false},
     {"2-exchanges", true, true, 2, false},  // the PCG FEM's default since 2026-11-27
@@ -134,6 +137,7 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
         stitching.msds_exchanges_per_frame = v.exchanges_per_frame;
         stitching.coarse_correction = v.coarse_correction;
         stitching.fine_correction_iterations = v.fine_correction_iterations;
+        stitching.seam_load_rate = v.seam_load_rate;
         sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, held_contact(),
                                      stitching, &jobs);
         double error_at_10 = 0.0;

@@ -63,6 +63,7 @@ const Field kFields[] = {
     ULTRASIM_FIELD("MSDS", msds, implicit_steps_per_frame, 1),
     ULTRASIM_FIELD("SIMULATION", collider, radius_mm, 5.0),
     ULTRASIM_FIELD("SIMULATION", stitching, spring_stiffness_per_modulus_mm, 5.0),
+    ULTRASIM_FIELD("SIMULATION", stitching, seam_load_rate, 0.05),
     ULTRASIM_FIELD("SIMULATION", stitching, sleep_force_mn, 0.05),
     ULTRASIM_FIELD("SIMULATION", stitching, extra_sub_volumes_per_frame, 1),
 };

@@ -20,6 +20,9 @@ constexpr double kReachMarginMm = 0.5;
 // Copies of a seam node the probe holds in several sub-volumes farther apart than this (issue 5's
 // gap target) are put at their mean.
 constexpr double kJoinHeldCopiesMm = 0.1;
+// A seam's remembered loads fade by this fraction a frame where its copies did not all step
+// ([stitching] seam_load_rate).
+constexpr double kSeamLoadFadePerFrame = 0.1;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
@@ -108,6 +111,8 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
   seam_gap_mm_.assign(mesh_.node_count(), 0.0);
   seam_force_mn_.assign(mesh_.node_count(), 0.0);
+  seam_load_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
+  seam_pull_before_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
@@ -413,6 +418,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const std::span<const int> stepped = std::span(schedule_).first(next);
   DivergenceCause refusal = DivergenceCause::kNone;
   const bool refused = refuses_frame(stepped, refusal);
+  remember_loads_this_frame_ = !refused && settings_.seam_load_rate > 0.0;
   if (refused) {
     revert_frame(stepped);
   } else {
@@ -454,6 +460,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     });
   }
   finish_frame();
+  remember_loads_this_frame_ = false;
   if (shares) after_steps_us_ = std::max<std::int64_t>(left_after_steps_us - time_left_us(), 0);
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;
@@ -599,8 +606,12 @@ void StitchedVolume::refresh_anchors(int s, const ProbeCollider* probe) {
     const int g = sub.global_node[local];
     Eigen::Vector3d others = Eigen::Vector3d::Zero();
     int count = 0;
+    int own = 0;
     for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      if (copies_[c].sub == s) continue;
+      if (copies_[c].sub == s) {
+        own = c;
+        continue;
+      }
       others += copy_position(copies_[c]);
       ++count;
     }
@@ -614,7 +625,10 @@ void StitchedVolume::refresh_anchors(int s, const ProbeCollider* probe) {
         probe->signed_distance_mm(target) < 0.0) {
       target = probe->closest_surface_point(target).point_mm;
     }
-    sub.anchors[i] = {local, target, seam_stiffness_mn_per_mm_[g] * count};
+    // The load the seam carried, as the spring's pull from that much further on.
+    const double stiffness = seam_stiffness_mn_per_mm_[g] * count;
+    target += seam_load_mn_[own] / stiffness;
+    sub.anchors[i] = {local, target, stiffness};
   }
   sub.engine->set_anchor_springs(sub.anchors);
 }
@@ -797,7 +811,8 @@ void StitchedVolume::correct_coarsely() {
       // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
       coarse_->add_seam_force(
           copies_[c].sub, copies_[c].local,
-          seam_stiffness_mn_per_mm_[g] * (sum - (end - begin) * copy_position(copies_[c])));
+          seam_stiffness_mn_per_mm_[g] * (sum - (end - begin) * copy_position(copies_[c])) +
+              seam_load_mn_[c]);
     }
   }
   if (!coarse_->solve()) return;
@@ -825,13 +840,53 @@ void StitchedVolume::update_seam(int g) {
   const int count = end - begin;
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
-  double node_force = 0.0;
-  for (int c = begin; c < end && !fixed_[g]; ++c) {
-    // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
-    node_force = std::max(node_force, seam_stiffness_mn_per_mm_[g] *
-                                          (sum - count * copy_position(copies_[c])).norm());
+  if (fixed_[g]) {
+    seam_gap_mm_[g] = seam_force_mn_[g] = 0.0;
+    return;
   }
-  seam_gap_mm_[g] = fixed_[g] ? 0.0 : widest_copy_gap_mm(g);
+  int stepped = 0, held = 0;
+  for (int c = begin; c < end; ++c) {
+    stepped += subs_[copies_[c].sub].stepped;
+    held += subs_[copies_[c].sub].engine->holds_node(copies_[c].local);
+  }
+  // The springs' pull is added to the loads where every copy stepped this frame: a copy left
+  // where it was did not answer the load it was given (with one copy stepped at a time the loads
+  // wound up and swung, ±150 mN at a four-copy corner of the large case). Elsewhere the loads
+  // fade, so that a region whose copies no longer step together (after the probe has left,
+  // one extra sub-volume a frame) is not held deformed by what they last carried. A copy the
+  // probe holds does not answer its anchor either (two held apart would wind up for ever): the
+  // free copies' change is taken by the held ones between them, and the loads still add up to
+  // zero over the node's copies.
+  const bool remember = remember_loads_this_frame_ && stepped == count && held < count;
+  const bool fade = remember_loads_this_frame_ && stepped < count;
+  Eigen::Vector3d added = Eigen::Vector3d::Zero();
+  double node_force = 0.0;
+  for (int c = begin; c < end; ++c) {
+    // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
+    const Eigen::Vector3d pull =
+        seam_stiffness_mn_per_mm_[g] * (sum - count * copy_position(copies_[c]));
+    if (fade) seam_load_mn_[c] *= 1.0 - kSeamLoadFadePerFrame;
+    if (remember && !subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+      // The mean of this frame's pull and the last: a seam whose copies swap sides from frame
+      // to frame (each anchored to where the other was) pulls one way and back, and adding each
+      // frame's pull fed that swing until the seam tore (the implicit MSDS on a 2 × 1 split:
+      // 2.98 mm within 150 frames at a rate of 0.1).
+      const Eigen::Vector3d step =
+          settings_.seam_load_rate * 0.5 * (pull + seam_pull_before_mn_[c]);
+      seam_load_mn_[c] += step;
+      added += step;
+    }
+    seam_pull_before_mn_[c] = pull;
+    // The pull that keeps a sub-volume awake: the whole load the seam puts on the copy, remembered
+    // and sprung (a region that has relaxed carries none, and sleeps).
+    node_force = std::max(node_force, (seam_load_mn_[c] + pull).norm());
+  }
+  for (int c = begin; c < end && remember && held > 0; ++c) {
+    if (subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+      seam_load_mn_[c] -= added / held;
+    }
+  }
+  seam_gap_mm_[g] = widest_copy_gap_mm(g);
   seam_force_mn_[g] = node_force;
 }
 
@@ -921,6 +976,9 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
                                 std::to_string(u_.size()) + " values, got " +
                                 std::to_string(u_mm.size()));
   }
+  // Copies put alike carry no load between them.
+  std::fill(seam_load_mn_.begin(), seam_load_mn_.end(), Eigen::Vector3d::Zero());
+  std::fill(seam_pull_before_mn_.begin(), seam_pull_before_mn_.end(), Eigen::Vector3d::Zero());
   for (auto& sub : subs_) {
     Eigen::VectorXd local(3 * static_cast<Eigen::Index>(sub.global_node.size()));
     for (std::size_t l = 0; l < sub.global_node.size(); ++l) {

@@ -63,6 +63,7 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.corotational.max_rotation_updates_fraction,
             b.corotational.max_rotation_updates_fraction);
   EXPECT_EQ(a.stitching.coarse_correction, b.stitching.coarse_correction);
+  EXPECT_EQ(a.stitching.seam_load_rate, b.stitching.seam_load_rate);
   EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
   EXPECT_EQ(a.stitching.sleep_motion_mm, b.stitching.sleep_motion_mm);
   EXPECT_EQ(a.frame.budget_us, b.frame.budget_us);
@@ -167,6 +168,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.corotational.rotation_update_tolerance = 0.0025;
   changed.corotational.max_rotation_updates_fraction = 0.125;
   changed.stitching.coarse_correction = false;
+  changed.stitching.seam_load_rate = 0.5;
   changed.stitching.sleep_force_mn = 0.25;
   changed.stitching.sleep_motion_mm = 2e-3;
   changed.fem.contact.model = sim::HeldContactModel::kStick;

@@ -268,6 +268,12 @@ class StitchedVolume final : public DeformationEngine {
   // sub-volumes' seam nodes visits each grid node once (for_each_moved_seam_node).
   std::vector<double> seam_gap_mm_;
   std::vector<double> seam_force_mn_;
+  // Per copy (as copies_), the load its seam carried so far, mN ([stitching] remember_seam_loads;
+  // zero otherwise); they add up to zero over a node's copies.
+  std::vector<Eigen::Vector3d> seam_load_mn_;
+  std::vector<Eigen::Vector3d> seam_pull_before_mn_;
+  // Whether finish_frame() adds the springs' force to the loads: an accepted frame.
+  bool remember_loads_this_frame_ = false;
   std::vector<std::uint32_t> node_stamp_;
   std::uint32_t node_stamp_counter_ = 0;
   std::vector<int> moved_subs_;       // per frame, sized once
