@@ -870,7 +870,7 @@ void StitchedVolume::update_seam(int g) {
       // The mean of this frame's pull and the last: a seam whose copies swap sides from frame
       // to frame (each anchored to where the other was) pulls one way and back, and adding each
       // frame's pull fed that swing until the seam tore (the implicit MSDS on a 2 × 1 split:
-      // 2.98 mm within 150 frames at a rate of 0.1).
+      // 2.4-3.0 mm within 15-150 frames at rates of 0.1-0.25).
       const Eigen::Vector3d step =
           settings_.seam_load_rate * 0.5 * (pull + seam_pull_before_mn_[c]);
       seam_load_mn_[c] += step;
