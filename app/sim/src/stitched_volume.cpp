@@ -418,7 +418,9 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const std::span<const int> stepped = std::span(schedule_).first(next);
   DivergenceCause refusal = DivergenceCause::kNone;
   const bool refused = refuses_frame(stepped, refusal);
-  remember_loads_this_frame_ = !refused && settings_.seam_load_rate > 0.0;
+  seam_loads_this_frame_ = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
+                           : refused                       ? SeamLoads::kHalve
+                                                           : SeamLoads::kRemember;
   if (refused) {
     revert_frame(stepped);
   } else {
@@ -460,7 +462,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     });
   }
   finish_frame();
-  remember_loads_this_frame_ = false;
+  seam_loads_this_frame_ = SeamLoads::kKeep;
   if (shares) after_steps_us_ = std::max<std::int64_t>(left_after_steps_us - time_left_us(), 0);
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;
@@ -856,16 +858,22 @@ void StitchedVolume::update_seam(int g) {
   // one extra sub-volume a frame) is not held deformed by what they last carried. A copy the
   // probe holds does not answer its anchor either (two held apart would wind up for ever): the
   // free copies' change is taken by the held ones between them, and the loads still add up to
-  // zero over the node's copies.
-  const bool remember = remember_loads_this_frame_ && stepped == count && held < count;
-  const bool fade = remember_loads_this_frame_ && stepped < count;
+  // zero over the node's copies. A refused frame halves the loads of the seams it went back on:
+  // the loads themselves may tear a seam (a press they carried, released at once, opens the
+  // seam by load / k), and kept as they were the same frame would be refused for ever (a 2 × 1
+  // split lifted from: 200 frames refused, the tissue left pressed 3.8 mm under no probe).
+  const bool remember = seam_loads_this_frame_ == SeamLoads::kRemember && stepped == count;
+  const double fade = seam_loads_this_frame_ == SeamLoads::kHalve ? 0.5
+                      : seam_loads_this_frame_ == SeamLoads::kRemember && stepped < count
+                          ? kSeamLoadFadePerFrame
+                          : 0.0;
   Eigen::Vector3d added = Eigen::Vector3d::Zero();
   double node_force = 0.0;
   for (int c = begin; c < end; ++c) {
     // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
     const Eigen::Vector3d pull =
         seam_stiffness_mn_per_mm_[g] * (sum - count * copy_position(copies_[c]));
-    if (fade) seam_load_mn_[c] *= 1.0 - kSeamLoadFadePerFrame;
+    seam_load_mn_[c] *= 1.0 - fade;
     if (remember && !subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
       // The mean of this frame's pull and the last: a seam whose copies swap sides from frame
       // to frame (each anchored to where the other was) pulls one way and back, and adding each
@@ -877,14 +885,14 @@ void StitchedVolume::update_seam(int g) {
       added += step;
     }
     seam_pull_before_mn_[c] = pull;
-    // The pull that keeps a sub-volume awake: the whole load the seam puts on the copy, remembered
-    // and sprung (a region that has relaxed carries none, and sleeps).
-    node_force = std::max(node_force, (seam_load_mn_[c] + pull).norm());
   }
-  for (int c = begin; c < end && remember && held > 0; ++c) {
-    if (subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+  for (int c = begin; c < end; ++c) {
+    if (remember && held > 0 && subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
       seam_load_mn_[c] -= added / held;
     }
+    // The pull that keeps a sub-volume awake: the whole load the seam puts on the copy, remembered
+    // and sprung (a region that has relaxed carries none, and sleeps).
+    node_force = std::max(node_force, (seam_load_mn_[c] + seam_pull_before_mn_[c]).norm());
   }
   seam_gap_mm_[g] = widest_copy_gap_mm(g);
   seam_force_mn_[g] = node_force;

@@ -268,12 +268,15 @@ class StitchedVolume final : public DeformationEngine {
   // sub-volumes' seam nodes visits each grid node once (for_each_moved_seam_node).
   std::vector<double> seam_gap_mm_;
   std::vector<double> seam_force_mn_;
-  // Per copy (as copies_), the load its seam carried so far, mN ([stitching] remember_seam_loads;
-  // zero otherwise); they add up to zero over a node's copies.
+  // Per copy (as copies_), the load its seam carried so far, mN ([stitching] seam_load_rate;
+  // zero when 0); they add up to zero over a node's copies. And the springs' pull on it when its
+  // seam was last updated (a seam none of whose copies moved pulls the same).
   std::vector<Eigen::Vector3d> seam_load_mn_;
   std::vector<Eigen::Vector3d> seam_pull_before_mn_;
-  // Whether finish_frame() adds the springs' force to the loads: an accepted frame.
-  bool remember_loads_this_frame_ = false;
+  // What finish_frame() does with the loads: an accepted frame remembers, a refused one halves
+  // those of the seams it went back on, any other update (construction, a reset) keeps them.
+  enum class SeamLoads { kKeep, kRemember, kHalve };
+  SeamLoads seam_loads_this_frame_ = SeamLoads::kKeep;
   std::vector<std::uint32_t> node_stamp_;
   std::uint32_t node_stamp_counter_ = 0;
   std::vector<int> moved_subs_;       // per frame, sized once
