@@ -418,9 +418,12 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const std::span<const int> stepped = std::span(schedule_).first(next);
   DivergenceCause refusal = DivergenceCause::kNone;
   const bool refused = refuses_frame(stepped, refusal);
+  // A refused frame with the probe in reach is tried again at another pose (the session's
+  // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
   seam_loads_this_frame_ = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
-                           : refused                       ? SeamLoads::kHalve
-                                                           : SeamLoads::kRemember;
+                           : !refused                      ? SeamLoads::kRemember
+                           : touched == 0                  ? SeamLoads::kHalve
+                                                           : SeamLoads::kKeep;
   if (refused) {
     revert_frame(stepped);
   } else {
@@ -846,8 +849,9 @@ void StitchedVolume::update_seam(int g) {
     seam_gap_mm_[g] = seam_force_mn_[g] = 0.0;
     return;
   }
+  // Which copies stepped and how many the probe holds, only when the loads change.
   int stepped = 0, held = 0;
-  for (int c = begin; c < end; ++c) {
+  for (int c = begin; c < end && seam_loads_this_frame_ != SeamLoads::kKeep; ++c) {
     stepped += subs_[copies_[c].sub].stepped;
     held += subs_[copies_[c].sub].engine->holds_node(copies_[c].local);
   }
@@ -858,10 +862,12 @@ void StitchedVolume::update_seam(int g) {
   // one extra sub-volume a frame) is not held deformed by what they last carried. A copy the
   // probe holds does not answer its anchor either (two held apart would wind up for ever): the
   // free copies' change is taken by the held ones between them, and the loads still add up to
-  // zero over the node's copies. A refused frame halves the loads of the seams it went back on:
-  // the loads themselves may tear a seam (a press they carried, released at once, opens the
-  // seam by load / k), and kept as they were the same frame would be refused for ever (a 2 × 1
-  // split lifted from: 200 frames refused, the tissue left pressed 3.8 mm under no probe).
+  // zero over the node's copies. A refused frame with nothing in the probe's reach halves the
+  // loads of the seams it went back on: the loads themselves may tear a seam (a press they
+  // carried, released at once, opens the seam by load / k), and kept as they were the same frame
+  // would be refused for ever (a 2 × 1 split lifted from: 200 frames refused, the tissue left
+  // pressed 3.8 mm under no probe). Halved under a press too, they gave way to the springs alone
+  // frame after frame, and the large soak's refused frames rose (1,954 against 896-1,201).
   const bool remember = seam_loads_this_frame_ == SeamLoads::kRemember && stepped == count;
   const double fade = seam_loads_this_frame_ == SeamLoads::kHalve ? 0.5
                       : seam_loads_this_frame_ == SeamLoads::kRemember && stepped < count

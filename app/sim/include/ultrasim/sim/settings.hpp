@@ -241,15 +241,16 @@ struct StitchingSettings {
   // as published).
   int fine_correction_iterations = 0;
   // Each copy of a shared node remembers the load its seam carries, and its anchor pulls by that
-  // much more (an augmented Lagrangian; the loads add up to zero over a node's copies, so they
-  // push no node as a whole): after every accepted frame in which all of a node's copies stepped,
-  // this fraction of the springs' pull on each copy (the mean of this frame's and the last's) is
-  // added to its load (where they did not all step the loads fade, and a refused frame halves
-  // those of the seams it went back on). The springs then hold only what the loads have not
-  // caught up with, and under a steady press the copies close up instead of standing apart by the
-  // load over k (2 × 1 split, 4 mm press: the MSDS's seams 0.12-0.13 → 0.04 mm, the PCG FEM's
-  // 0.030 → 0.009 mm; docs/accuracy.md). Faster overshoots where the sub-volumes' solves stop short
-  // (the implicit MSDS tore the large case's seams at 1.0); 0: the springs alone, as published.
+  // much more (an augmented Lagrangian; the loads add up to zero over a node's copies, so they push
+  // no node as a whole): after every accepted frame in which all of a node's copies stepped, this
+  // fraction of the springs' pull on each copy (the mean of this frame's and the last's) is added
+  // to its load (where they did not all step the loads fade, and a frame refused with nothing in
+  // the probe's reach halves those of the seams it went back on). The springs then hold only what
+  // the loads have not caught up with, and under a steady press the copies close up instead of
+  // standing apart by the load over k (2 × 1 split, 4 mm press: the MSDS's seams 0.12-0.13 → 0.04
+  // mm, the PCG FEM's 0.030 → 0.009 mm; docs/accuracy.md). Faster overshoots where the sub-volumes'
+  // solves stop short (the implicit MSDS tore the large case's seams at 1.0); 0: the springs alone,
+  // as published.
   double seam_load_rate = 0.25;
   // A frame that opens a seam wider than this (the largest distance between copies of a shared
   // node, mm) is refused as a whole, as one whose sub-volume refused its step: the seam has torn

@@ -273,8 +273,9 @@ class StitchedVolume final : public DeformationEngine {
   // seam was last updated (a seam none of whose copies moved pulls the same).
   std::vector<Eigen::Vector3d> seam_load_mn_;
   std::vector<Eigen::Vector3d> seam_pull_before_mn_;
-  // What finish_frame() does with the loads: an accepted frame remembers, a refused one halves
-  // those of the seams it went back on, any other update (construction, a reset) keeps them.
+  // What finish_frame() does with the loads: an accepted frame remembers, a refused one with
+  // nothing in the probe's reach halves those of the seams it went back on, any other update
+  // (a refusal under the probe, construction, a reset) keeps them.
   enum class SeamLoads { kKeep, kRemember, kHalve };
   SeamLoads seam_loads_this_frame_ = SeamLoads::kKeep;
   std::vector<std::uint32_t> node_stamp_;
