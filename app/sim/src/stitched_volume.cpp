@@ -116,11 +116,11 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
-  for (const int g : shared_nodes_) update_seam(g);  // the fixed ones' midpoints, once
+  for (const int g : shared_nodes_) update_seam(g, SeamLoads::kKeep);  // fixed midpoints, once
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
   }
-  finish_frame();
+  finish_frame(SeamLoads::kKeep);
   for (auto& sub : subs_) sub.stepped = sub.moved = false;
 }
 
@@ -420,10 +420,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const bool refused = refuses_frame(stepped, refusal);
   // A refused frame with the probe in reach is tried again at another pose (the session's
   // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
-  seam_loads_this_frame_ = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
-                           : !refused                      ? SeamLoads::kRemember
-                           : touched == 0                  ? SeamLoads::kHalve
-                                                           : SeamLoads::kKeep;
+  const SeamLoads loads = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
+                          : !refused                      ? SeamLoads::kRemember
+                          : touched == 0                  ? SeamLoads::kHalve
+                                                          : SeamLoads::kKeep;
   if (refused) {
     revert_frame(stepped);
   } else {
@@ -464,8 +464,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
       return stats.recovery == Recovery::kKeptLastGood && stats.cut_short;
     });
   }
-  finish_frame();
-  seam_loads_this_frame_ = SeamLoads::kKeep;
+  finish_frame(loads);
   if (shares) after_steps_us_ = std::max<std::int64_t>(left_after_steps_us - time_left_us(), 0);
   stats_.sub_volumes_touched = touched;
   stats_.sub_volumes_stepped = next;
@@ -839,7 +838,7 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
-void StitchedVolume::update_seam(int g) {
+void StitchedVolume::update_seam(int g, SeamLoads loads) {
   const int begin = copies_begin_[g], end = copies_begin_[g + 1];
   const Eigen::Vector3d sum = copies_sum(g);
   const int count = end - begin;
@@ -849,12 +848,8 @@ void StitchedVolume::update_seam(int g) {
     seam_gap_mm_[g] = seam_force_mn_[g] = 0.0;
     return;
   }
-  // Which copies stepped and how many the probe holds, only when the loads change.
-  int stepped = 0, held = 0;
-  for (int c = begin; c < end && seam_loads_this_frame_ != SeamLoads::kKeep; ++c) {
-    stepped += subs_[copies_[c].sub].stepped;
-    held += subs_[copies_[c].sub].engine->holds_node(copies_[c].local);
-  }
+  int stepped = 0;
+  for (int c = begin; c < end; ++c) stepped += subs_[copies_[c].sub].stepped;
   // The springs' pull is added to the loads where every copy stepped this frame: a copy left
   // where it was did not answer the load it was given (with one copy stepped at a time the loads
   // wound up and swung, ±150 mN at a four-copy corner of the large case). Elsewhere the loads
@@ -868,19 +863,20 @@ void StitchedVolume::update_seam(int g) {
   // would be refused for ever (a 2 × 1 split lifted from: 200 frames refused, the tissue left
   // pressed 3.8 mm under no probe). Halved under a press too, they gave way to the springs alone
   // frame after frame, and the large soak's refused frames rose (1,954 against 896-1,201).
-  const bool remember = seam_loads_this_frame_ == SeamLoads::kRemember && stepped == count;
-  const double fade = seam_loads_this_frame_ == SeamLoads::kHalve ? 0.5
-                      : seam_loads_this_frame_ == SeamLoads::kRemember && stepped < count
-                          ? kSeamLoadFadePerFrame
-                          : 0.0;
+  const bool remember = loads == SeamLoads::kRemember && stepped == count;
+  const double fade = loads == SeamLoads::kHalve                         ? 0.5
+                      : loads == SeamLoads::kRemember && stepped < count ? kSeamLoadFadePerFrame
+                                                                         : 0.0;
   Eigen::Vector3d added = Eigen::Vector3d::Zero();
-  double node_force = 0.0;
+  int held = 0;
   for (int c = begin; c < end; ++c) {
     // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
     const Eigen::Vector3d pull =
         seam_stiffness_mn_per_mm_[g] * (sum - count * copy_position(copies_[c]));
     seam_load_mn_[c] *= 1.0 - fade;
-    if (remember && !subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+    if (remember && subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+      ++held;
+    } else if (remember) {
       // The mean of this frame's pull and the last: a seam whose copies swap sides from frame
       // to frame (each anchored to where the other was) pulls one way and back, and adding each
       // frame's pull fed that swing until the seam tore (the implicit MSDS on a 2 × 1 split:
@@ -892,8 +888,9 @@ void StitchedVolume::update_seam(int g) {
     }
     seam_pull_before_mn_[c] = pull;
   }
+  double node_force = 0.0;
   for (int c = begin; c < end; ++c) {
-    if (remember && held > 0 && subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
+    if (held > 0 && subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
       seam_load_mn_[c] -= added / held;
     }
     // The pull that keeps a sub-volume awake: the whole load the seam puts on the copy, remembered
@@ -914,7 +911,7 @@ double StitchedVolume::widest_copy_gap_mm(int g) const {
   return gap;
 }
 
-void StitchedVolume::finish_frame() {
+void StitchedVolume::finish_frame(SeamLoads loads) {
   // On the job system: the large case's frame spent 0.8 ms here on one thread. A seam none of
   // whose copies moved keeps last frame's midpoint, gap and pull (on the large case most seams
   // lie between sleeping sub-volumes; fixed seam nodes never move, their midpoints set once).
@@ -951,7 +948,7 @@ void StitchedVolume::finish_frame() {
   hal::parallel_for(jobs_, seam_tasks, [&](int task) {
     const int begin = static_cast<int>(static_cast<long>(seams) * task / seam_tasks);
     const int end = static_cast<int>(static_cast<long>(seams) * (task + 1) / seam_tasks);
-    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i]);
+    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads);
   });
   // Every side of a seam feels its strongest pull: where three copies agree and the fourth does
   // not, the three must wake too, or the fourth is held deformed by sleepers for ever.
@@ -1008,7 +1005,7 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   if (coarse_) {
     for (int s = 0; s < sub_volume_count(); ++s) coarse_->update(s, *subs_[s].engine);
   }
-  finish_frame();
+  finish_frame(SeamLoads::kKeep);
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = false;
     sub.asleep = false;

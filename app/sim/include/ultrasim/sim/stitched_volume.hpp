@@ -189,9 +189,13 @@ class StitchedVolume final : public DeformationEngine {
   // `budget` is each sub-volume's own (step_within; thread-safe: the batch steps in parallel).
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
                   bool first_part, const StepBudget& budget);
-  // Per shared node: gap and seam forces; per sub-volume: seam force, bounds, sleep. Then the
-  // shown positions (copies' mean) and displacements.
-  void finish_frame();
+  // What a seam update does with the loads its copies carry: an accepted frame remembers, a
+  // refused one with nothing in the probe's reach halves those of the seams it went back on, any
+  // other update (a refusal under the probe, construction, a reset) keeps them.
+  enum class SeamLoads { kKeep, kRemember, kHalve };
+  // Per shared node: gap and seam forces (and loads); per sub-volume: seam force, bounds, sleep.
+  // Then the shown positions (copies' mean) and displacements.
+  void finish_frame(SeamLoads loads);
   // The coarse correction's share of the residual of the sub-volumes that stepped.
   void update_coarse_residuals(std::span<const int> stepped);
   // The fine correction over the sub-volumes that stepped, after their steps (may_continue: the
@@ -220,8 +224,8 @@ class StitchedVolume final : public DeformationEngine {
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
   void join_held_copies_of(int grid_node);
-  // A shared node's midpoint, gap and pull from its copies.
-  void update_seam(int grid_node);
+  // A shared node's midpoint, gap, loads and pull from its copies.
+  void update_seam(int grid_node, SeamLoads loads);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
   // shares at a local node keep(sub, local) accepts.
   template <typename Keep, typename Visit>
@@ -273,11 +277,6 @@ class StitchedVolume final : public DeformationEngine {
   // seam was last updated (a seam none of whose copies moved pulls the same).
   std::vector<Eigen::Vector3d> seam_load_mn_;
   std::vector<Eigen::Vector3d> seam_pull_before_mn_;
-  // What finish_frame() does with the loads: an accepted frame remembers, a refused one with
-  // nothing in the probe's reach halves those of the seams it went back on, any other update
-  // (a refusal under the probe, construction, a reset) keeps them.
-  enum class SeamLoads { kKeep, kRemember, kHalve };
-  SeamLoads seam_loads_this_frame_ = SeamLoads::kKeep;
   std::vector<std::uint32_t> node_stamp_;
   std::uint32_t node_stamp_counter_ = 0;
   std::vector<int> moved_subs_;       // per frame, sized once
