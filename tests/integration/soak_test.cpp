@@ -130,6 +130,35 @@ TEST_F(ShortSoak, PerSecondSamplesCoverTheRunAndHoldItsStrongestPress) {
   EXPECT_EQ(strongest, json_number(report_, "max_contact_force_n"));
 }
 
+// The samples say where the late frames came from: their late frames add up to the run's
+// deadline misses with the rendering at its reserve, and the slowest of their slowest frames is
+// the run's, with a method named and a simulation time no longer than the frame.
+TEST_F(ShortSoak, PerSecondSamplesAccountForEveryLateFrame) {
+  const std::size_t samples = report_.find("\"per_second\":");
+  ASSERT_NE(samples, std::string::npos);
+  const std::regex sample(
+      "\"late_frames\": ([0-9]+), \"slowest_frame_us\": ([0-9]+), "
+      "\"slowest_frame_simulation_us\": ([0-9]+), \"slowest_frame_method\": \"([a-z-]+)\"");
+  double late = 0.0;
+  double slowest_us = 0.0;
+  int count = 0;
+  for (auto it = std::sregex_iterator(report_.begin() + static_cast<std::ptrdiff_t>(samples),
+                                      report_.end(), sample);
+       it != std::sregex_iterator(); ++it) {
+    ++count;
+    late += std::stod((*it)[1]);
+    const double frame_us = std::stod((*it)[2]);
+    slowest_us = std::max(slowest_us, frame_us);
+    EXPECT_LE(std::stod((*it)[3]), frame_us) << "sample " << count;
+  }
+  const double frames_per_second = std::floor(1e6 / kFrameBudgetUs);
+  EXPECT_EQ(count, static_cast<int>(std::ceil(json_number(report_, "frames") / frames_per_second)));
+  const std::size_t capped = report_.find("\"frame_time_render_capped\":");
+  ASSERT_NE(capped, std::string::npos);
+  EXPECT_EQ(late, json_number(report_, "deadline_misses", capped));
+  EXPECT_EQ(slowest_us, json_number(report_, "max_us", capped));
+}
+
 TEST_F(ShortSoak, MemoryGrowthStaysWithinTheExactFemCacheBound) {
   const double growth_kib = json_number(report_, "growth_kib");
   EXPECT_LE(growth_kib, 200.0 * 1024) << "resident memory grew " << growth_kib / 1024 << " MB";

@@ -49,7 +49,9 @@ void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
   // deadline only its work that cannot wait still runs (Session::simulate).
   const std::int64_t allowed_us =
       std::clamp<std::int64_t>(tick.time_left_us, 0, loop->simulation_budget_us_);
-  loop->outcome_ = loop->session_->simulate(loop->sample_, loop->clock_.now_us() + allowed_us);
+  const hal::TimestampUs start_us = loop->clock_.now_us();
+  loop->outcome_ = loop->session_->simulate(loop->sample_, start_us + allowed_us);
+  loop->last_simulation_us_ = loop->clock_.now_us() - start_us;
 }
 
 void FrameLoop::bscan(void* self, const sched::TaskTick&) {

@@ -446,6 +446,13 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     report.frames += 1;
     second.max_contact_force_n = std::max(second.max_contact_force_n, outcome.sim.contact_force_n);
     if (outcome.stitch) second.max_gap_mm = std::max(second.max_gap_mm, outcome.stitch->max_gap_mm);
+    const std::int64_t capped_us = loop.last_frame_render_capped_us();
+    second.late_frames += capped_us > budget_us;
+    if (capped_us > second.slowest_frame_us) {
+      second.slowest_frame_us = capped_us;
+      second.slowest_frame_simulation_us = loop.last_simulation_us();
+      second.slowest_frame_method = method_key;
+    }
     if (report.frames % frames_per_second == 0) {
       second.frame = frame;
       report.per_second.push_back(second);

@@ -159,7 +159,10 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
     const RunReport::SecondSample& s = r.per_second[i];
     out << (i ? ", " : "") << "{\"frame\": " << s.frame
         << ", \"max_contact_force_n\": " << s.max_contact_force_n
-        << ", \"max_gap_mm\": " << s.max_gap_mm << "}";
+        << ", \"max_gap_mm\": " << s.max_gap_mm << ", \"late_frames\": " << s.late_frames
+        << ", \"slowest_frame_us\": " << s.slowest_frame_us
+        << ", \"slowest_frame_simulation_us\": " << s.slowest_frame_simulation_us
+        << ", \"slowest_frame_method\": \"" << s.slowest_frame_method << "\"}";
   }
   out << "]\n}\n";
 

@@ -65,6 +65,8 @@ class FrameLoop {
   const sched::FrameTimeStats& frame_time_render_capped() const { return render_capped_; }
   // The last frame's time less the rendering's excess over its reserve, µs.
   std::int64_t last_frame_render_capped_us() const { return last_render_capped_us_; }
+  // How long the last frame's simulation took, µs.
+  std::int64_t last_simulation_us() const { return last_simulation_us_; }
 
   // What the simulation did this frame.
   const FrameOutcome& outcome() const { return outcome_; }
@@ -84,6 +86,7 @@ class FrameLoop {
   std::int64_t render_budget_us_;
   std::int64_t last_render_us_ = 0;
   std::int64_t last_render_capped_us_ = 0;
+  std::int64_t last_simulation_us_ = 0;
   std::optional<hal::PoseSample> sample_;
   std::int64_t sample_age_us_ = 0;
   hal::TimestampUs frame_start_us_ = 0;

@@ -113,11 +113,17 @@ struct RunReport {
   // and a leak, growing all along, does; 0 with fewer than 4 samples.
   std::vector<std::pair<std::int64_t, std::int64_t>> memory_kib;
   // Once a second of frames, the strongest press and the widest stitched seam over that second
-  // (its last frame): where a run's largest figures came from, and how they grew.
+  // (its last frame): where a run's largest figures came from, and how they grew. And where its
+  // late frames came from: how many of the second's frames were over the budget with the
+  // rendering at its reserve, and its slowest such frame's time, simulation time and method.
   struct SecondSample {
     std::int64_t frame = 0;
     double max_contact_force_n = 0.0;
     double max_gap_mm = 0.0;
+    int late_frames = 0;
+    std::int64_t slowest_frame_us = 0;
+    std::int64_t slowest_frame_simulation_us = 0;
+    std::string slowest_frame_method;
   };
   std::vector<SecondSample> per_second;
   std::int64_t memory_baseline_frame = 0;
