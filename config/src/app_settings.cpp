@@ -276,6 +276,11 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               IntegerIn<int>{1, 64},
               "Corotational FEM: seam exchanges per frame (1: each part extracts rotations and "
               "assembles again, and 2 took twice the time)."));
+  t.add(field("corotational_turn_check_interval_frames",
+              &S::corotational_turn_check_interval_frames, IntegerIn<int>{1, 100},
+              "Corotational FEM: a sub-volume checks a tet found within [corotational] "
+              "rotation_update_tolerance once in this many frames (one turned past it every "
+              "frame); 1: every tet every frame, as one piece does."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

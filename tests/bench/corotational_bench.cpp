@@ -4,7 +4,8 @@
 // Scene: the engine benchmarks' block (the default case's region, 60 × 40 × 45 mm) at the default
 // case's mesh (37 × 9 × 28 nodes), two threads as in the kiosk; probe: the 38 mm face pressed 4 mm,
 // then
-// (`slide` 1) sliding ±5 mm at 0.5 mm a frame or (`slide` 0) held. Counters: each one's mean ms
+// (`slide` 1) sliding ±5 mm at 0.5 mm a frame or (`slide` 0) held; the kept run's tets within
+// the tolerance checked every frame or every other (`check_interval`). Counters: each one's mean ms
 // a frame, kept/every, the share of rotations the kept run extracted a frame, and its field's
 // difference from the reference's after the measured frames (max norm, relative).
 //   build/ci/tests/bench/corotational_bench
@@ -26,6 +27,7 @@ void BM_KeptRotations(benchmark::State& state) {
   const double tolerance = 1e-3 * static_cast<double>(state.range(0));
   const bool slide = state.range(1) != 0;
   const double cap = 1e-2 * static_cast<double>(state.range(2));
+  const int check_interval = static_cast<int>(state.range(3));
   const bench::Block& b = bench::block(37, 9, 28);
   drivers::posix::ThreadPool jobs(2);
   sim::CorotationalSettings every_settings, kept_settings;
@@ -33,6 +35,7 @@ void BM_KeptRotations(benchmark::State& state) {
   every_settings.max_rotation_updates_fraction = 1.0;
   kept_settings.rotation_update_tolerance = tolerance;
   kept_settings.max_rotation_updates_fraction = cap;
+  kept_settings.turn_check_interval_frames = check_interval;
   sim::CorotationalFem every(b.mesh, b.materials, b.fixed, every_settings, &jobs);
   sim::CorotationalFem kept(b.mesh, b.materials, b.fixed, kept_settings, &jobs);
   const auto probe_at = [&](int frame) {
@@ -67,15 +70,17 @@ void BM_KeptRotations(benchmark::State& state) {
 }
 
 BENCHMARK(BM_KeptRotations)
-    ->ArgNames({"tolerance_e-3", "slide", "cap_percent"})
-    ->Args({1, 1, 100})
-    ->Args({10, 1, 100})
-    ->Args({10, 1, 5})
-    ->Args({10, 1, 2})
-    ->Args({1, 0, 100})
-    ->Args({10, 0, 100})
-    ->Args({10, 0, 5})
-    ->Args({10, 0, 2})
+    ->ArgNames({"tolerance_e-3", "slide", "cap_percent", "check_interval"})
+    ->Args({1, 1, 100, 1})
+    ->Args({10, 1, 100, 1})
+    ->Args({10, 1, 5, 1})
+    ->Args({10, 1, 2, 1})
+    ->Args({10, 1, 2, 2})
+    ->Args({1, 0, 100, 1})
+    ->Args({10, 0, 100, 1})
+    ->Args({10, 0, 5, 1})
+    ->Args({10, 0, 2, 1})
+    ->Args({10, 0, 2, 2})
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);

@@ -66,6 +66,10 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
     throw std::invalid_argument(
         "StitchedVolume: exchanges_per_frame and corotational_exchanges_per_frame must be >= 1");
   }
+  if (stitching.corotational_turn_check_interval_frames < 1) {
+    throw std::invalid_argument(
+        "StitchedVolume: corotational_turn_check_interval_frames must be >= 1");
+  }
   if (stitching.msds_exchanges_per_frame < 1 ||
       engine_settings.msds.steps_per_frame % stitching.msds_exchanges_per_frame != 0) {
     throw std::invalid_argument("StitchedVolume: msds_exchanges_per_frame (" +
@@ -181,6 +185,8 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
         std::max(1, settings.fem.pcg_iterations_per_frame / parts);
     settings.corotational.pcg_iterations_per_frame =
         std::max(1, settings.corotational.pcg_iterations_per_frame / parts);
+    settings.corotational.turn_check_interval_frames =
+        settings_.corotational_turn_check_interval_frames;
     for (double* fraction :
          {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
           &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {

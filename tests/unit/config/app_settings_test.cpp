@@ -62,6 +62,8 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.corotational.rotation_update_tolerance, b.corotational.rotation_update_tolerance);
   EXPECT_EQ(a.corotational.max_rotation_updates_fraction,
             b.corotational.max_rotation_updates_fraction);
+  EXPECT_EQ(a.stitching.corotational_turn_check_interval_frames,
+            b.stitching.corotational_turn_check_interval_frames);
   EXPECT_EQ(a.stitching.coarse_correction, b.stitching.coarse_correction);
   EXPECT_EQ(a.stitching.seam_load_rate, b.stitching.seam_load_rate);
   EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
@@ -167,6 +169,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.corotational_exchanges_per_frame = 2;
   changed.corotational.rotation_update_tolerance = 0.0025;
   changed.corotational.max_rotation_updates_fraction = 0.125;
+  changed.stitching.corotational_turn_check_interval_frames = 3;
   changed.stitching.coarse_correction = false;
   changed.stitching.seam_load_rate = 0.5;
   changed.stitching.sleep_force_mn = 0.25;

@@ -148,6 +148,7 @@ class CorotationalFem final : public DeformationEngine {
   // equals LinearFem's), as an Eigen matrix. Allocates; for tests.
   Eigen::SparseMatrix<double, Eigen::RowMajor> warped_stiffness() const;
 
+  const CorotationalSettings& settings() const { return settings_; }
   // Rotation of tet t at the last assembly.
   const Eigen::Matrix3d& tet_rotation(int t) const { return rotation_[t]; }
   // Tets whose rotation the last step (or the last outer iteration of solve_to_convergence())
@@ -199,7 +200,9 @@ class CorotationalFem final : public DeformationEngine {
   // or more from its rotation (every tet with 0), or of the `max_updates` most turned of them
   // where there are more (besides those whose turn is infinite: inverted, collapsed, or not near
   // any rotation of the one held, which always take one), and marks those in rotation_moved_.
-  void update_rotations(double tolerance, int max_updates);
+  // A tet within the tolerance at its last check is checked in one call of `check_interval`
+  // (every tet after set_displacements_mm()).
+  void update_rotations(double tolerance, int max_updates, int check_interval);
   // settings.max_rotation_updates_fraction of the tets (one at least).
   int rotation_update_cap() const;
   // Tet t's deformation gradient at the current displacements.
@@ -283,7 +286,9 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<Eigen::Matrix<double, 3, 4>> rotated_gradients_;  // per tet: R g_a
   std::vector<Eigen::Matrix<double, 3, 4>> element_rhs_;        // per tet: R K_e (x0 − Rᵀ x0)
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
-  std::vector<double> turn_;                  // per tet: its turn at the last update
+  std::vector<double> turn_;                  // per tet: its turn at its last check
+  std::int64_t turn_check_frame_ = 0;         // update_rotations() calls so far
+  bool check_every_tet_ = true;               // the next update checks every tet's turn
   std::vector<double> turn_scratch_;          // the turns past the tolerance (capacity: tets)
   // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out
   // before their rotations change, in after: two evaluations each), fewer than half its terms;

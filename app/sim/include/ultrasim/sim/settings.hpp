@@ -124,6 +124,11 @@ struct CorotationalSettings {
   // a quarter fewer frames over 16.7 ms at 2 % than without a cap, every marker within 2 % of the
   // uncapped engine's; docs/benchmarks.md, docs/accuracy.md). 1: every tet past the tolerance.
   double max_rotation_updates_fraction = 0.02;
+  // A tet found within rotation_update_tolerance is checked again once in this many steps (a
+  // tet past it, or lost, every step; every tet after the shape is set from outside). 1 (one
+  // piece): every tet every frame. A stitched volume's sub-volumes take [stitching]
+  // corotational_turn_check_interval_frames.
+  int turn_check_interval_frames = 1;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };
@@ -223,6 +228,15 @@ struct StitchingSettings {
   // blocks again before its CG, so two parts doubled that work (large case, sweep-press, 1e-3
   // rad: simulation p50 11.1 against 6.5-6.9 ms; widest seam 0.067 against 0.078 mm).
   int corotational_exchanges_per_frame = 1;
+  // A stitched corotational sub-volume checks a tet found within rotation_update_tolerance once
+  // in this many frames (CorotationalSettings::turn_check_interval_frames). The check, every tet's
+  // deformation gradient against its rotation, was the largest part of a touched sub-volume's
+  // fixed work (0.48 of 1.7 ms a step under the large case's seam presses, its CG one iteration
+  // a frame); at 2 that step took 1.47 ms and the presses' frames over 16.7 ms fell from 316 to
+  // 179, the held forces within 2.4 %. One piece, whose CG has the time (the default case:
+  // nothing gained), checks every frame: a tet found turned a frame late lags a sliding probe
+  // further (docs/benchmarks.md, docs/accuracy.md).
+  int corotational_turn_check_interval_frames = 2;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
   // added to every sub-volume, so a disturbance reaches across the region in one frame instead
