@@ -139,7 +139,8 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<int> shared_local;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
-    Eigen::VectorXd revert_mm;  // 3 × local nodes: a refused frame's displacements, sized once
+    Eigen::VectorXd revert_mm;    // 3 × local nodes: a refused frame's displacements, sized once
+    Eigen::VectorXd cut_back_mm;  // 3 × local nodes: a frame cut back along its update
     // The engine's deformed positions (refreshed whenever it changes them).
     std::span<const Eigen::Vector3d> positions_mm;
     // Blocks of a few nodes per axis (per local node, its block) and each block's bounding box
@@ -220,6 +221,12 @@ class StitchedVolume final : public DeformationEngine {
   bool tears_a_seam();
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
+  // The displacements the frame found the sub-volume at, into its revert_mm.
+  void frame_start_displacements(SubVolume& sub);
+  // Every stepped sub-volume to half, a quarter, ... (to 1/16) of the way from where the frame
+  // found it to where it stepped (at rest velocity), the first that tears no seam; false (and
+  // left at 1/16) if none.
+  bool cut_back_frame(std::span<const int> stepped);
   // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
