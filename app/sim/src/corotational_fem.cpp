@@ -614,10 +614,11 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
   // positive definite: an infinite turn) takes a new one every frame, outside the cap: ranked
   // first, such tets under a deep press filled the cap, the same ones frame after frame, and no
   // other tet's rotation moved while the probe stayed.
-  // A tet within the tolerance at its last check is checked again once every check_interval
-  // frames (a tet turned or lost at it, every frame): the check is the fixed work's largest part
-  // (a stitched sub-volume's 13,720 tets: 0.48 of its 1.7 ms a touched step), and a tet found
-  // turned a frame later has turned a frame further, as one the cap leaves does.
+  // A tet found within the tolerance at its last check is checked again once every
+  // check_interval steps (a tet past it, lost, or given a new rotation at it: every step): the
+  // check is the fixed work's largest part (a stitched sub-volume's 13,720 tets: 0.48 of its
+  // 1.7 ms a touched step), and a tet found turned a step later has turned a step further, as
+  // one the cap leaves does.
   const int interval = check_every_tet_ ? 1 : std::max(check_interval, 1);
   const int phase = static_cast<int>(turn_check_frame_++ % interval);
   check_every_tet_ = false;
@@ -668,8 +669,9 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
     for (int t = begin; t < end; ++t) {
       if (!rotation_moved_[t]) continue;
       extract_rotation(t, deformation_gradient(t));
-      // It holds its rotation now: no turn until it is checked again (a lost one, next frame).
-      if (!lost(turn_[t])) turn_[t] = 0.0;
+      // Checked again next step (a tet turning under a sliding probe keeps turning), skipped
+      // only once found back within the tolerance.
+      if (!lost(turn_[t])) turn_[t] = tolerance;
     }
   });
 }

@@ -186,7 +186,9 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     settings.corotational.pcg_iterations_per_frame =
         std::max(1, settings.corotational.pcg_iterations_per_frame / parts);
     settings.corotational.turn_check_interval_frames =
-        settings_.corotational_turn_check_interval_frames;
+        settings.corotational.contact.model == HeldContactModel::kStick
+            ? 1
+            : settings_.corotational_turn_check_interval_frames;
     for (double* fraction :
          {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
           &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {
@@ -435,7 +437,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   refused = refused && !cut_back;
   // A refused frame with the probe in reach is tried again at another pose (the session's
   // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
+  // A frame cut back is the tissue springing back with nothing in reach: the loads are
+  // released as for a refusal, else they keep a seam they opened at the bound.
   const SeamLoads loads = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
+                          : cut_back                      ? SeamLoads::kHalve
                           : !refused                      ? SeamLoads::kRemember
                           : touched == 0                  ? SeamLoads::kHalve
                                                           : SeamLoads::kKeep;
@@ -767,7 +772,7 @@ void StitchedVolume::frame_start_displacements(SubVolume& sub) {
 }
 
 bool StitchedVolume::cut_back_frame(std::span<const int> stepped) {
-  constexpr int kHalvings = 4;  // down to 1/16 of the frame's update
+  constexpr int kHalvings = 8;  // down to 1/256 of the frame's update
   hal::parallel_for(jobs_, static_cast<int>(stepped.size()), [&](int i) {
     SubVolume& sub = subs_[stepped[i]];
     frame_start_displacements(sub);

@@ -115,7 +115,8 @@ struct RunReport {
   // Once a second of frames, the strongest press and the widest stitched seam over that second
   // (its last frame): where a run's largest figures came from, and how they grew. And where its
   // late frames came from: how many of the second's frames were over the budget with the
-  // rendering at its reserve, and its slowest such frame's time, simulation time and method.
+  // rendering at its reserve, and its slowest frame's time (so measured), simulation time and
+  // method, late or not.
   struct SecondSample {
     std::int64_t frame = 0;
     double max_contact_force_n = 0.0;

@@ -200,8 +200,10 @@ class CorotationalFem final : public DeformationEngine {
   // or more from its rotation (every tet with 0), or of the `max_updates` most turned of them
   // where there are more (besides those whose turn is infinite: inverted, collapsed, or not near
   // any rotation of the one held, which always take one), and marks those in rotation_moved_.
-  // A tet within the tolerance at its last check is checked in one call of `check_interval`
-  // (every tet after set_displacements_mm()).
+  // A tet found within the tolerance at its last check is checked in one call of
+  // `check_interval` (one past it, lost or given a new rotation: at the next call; every tet
+  // after set_displacements_mm()), so a tet that turns or is lost between its checks takes its
+  // rotation up to check_interval − 1 calls late.
   void update_rotations(double tolerance, int max_updates, int check_interval);
   // settings.max_rotation_updates_fraction of the tets (one at least).
   int rotation_update_cap() const;

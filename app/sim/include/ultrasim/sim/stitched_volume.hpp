@@ -191,7 +191,7 @@ class StitchedVolume final : public DeformationEngine {
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
                   bool first_part, const StepBudget& budget);
   // What a seam update does with the loads its copies carry: an accepted frame remembers, a
-  // refused one with nothing in the probe's reach halves those of the seams it went back on, any
+  // refused or cut-back one with nothing in the probe's reach halves those of its seams, any
   // other update (a refusal under the probe, construction, a reset) keeps them.
   enum class SeamLoads { kKeep, kRemember, kHalve };
   // Per shared node: gap and seam forces (and loads); per sub-volume: seam force, bounds, sleep.
@@ -223,9 +223,9 @@ class StitchedVolume final : public DeformationEngine {
   void revert_frame(std::span<const int> stepped);
   // The displacements the frame found the sub-volume at, into its revert_mm.
   void frame_start_displacements(SubVolume& sub);
-  // Every stepped sub-volume to half, a quarter, ... (to 1/16) of the way from where the frame
+  // Every stepped sub-volume to half, a quarter, ... (to 1/256) of the way from where the frame
   // found it to where it stepped (at rest velocity), the first that tears no seam; false (and
-  // left at 1/16) if none.
+  // left at 1/256) if none.
   bool cut_back_frame(std::span<const int> stepped);
   // The copies of a seam node that the probe holds in several sub-volumes, each where it caught
   // its copy, to their mean: the next step's contact test takes them up in one place.
