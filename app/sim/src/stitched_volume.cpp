@@ -111,6 +111,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   batched_.reserve(subs_.size());
   placed_.assign(subs_.size(), 0);
   due_.assign(subs_.size(), 0);
+  step_next_.assign(subs_.size(), 0);
   shown_ = mesh_.rest_positions_mm;
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
   seam_gap_mm_.assign(mesh_.node_count(), 0.0);
@@ -301,7 +302,11 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // smooth what it leaves near the probe and at the seams, and the contacts are decided on their
   // answer, not on the coarse field's.
   correct_coarsely();
+  // The sub-volumes that step whatever the time: those in the probe's reach (touched), and those
+  // the last frame's torn seam left standing.
   const int touched = plan_frame(probe);
+  const int in_reach = static_cast<int>(
+      std::ranges::count_if(subs_, [](const SubVolume& sub) { return sub.touched; }));
   const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
   // The sub-volumes the probe may touch always step: skipping one would let the probe pass
   // through the tissue.
@@ -433,7 +438,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // instead let seams open to 7-12 mm in the large soak. The frame is cut back along its update,
   // to the largest part of it that tears nothing: the tissue comes back over a few frames.
   const bool cut_back =
-      refused && refusal == DivergenceCause::kSeamTorn && touched == 0 && cut_back_frame(stepped);
+      refused && refusal == DivergenceCause::kSeamTorn && in_reach == 0 && cut_back_frame(stepped);
   refused = refused && !cut_back;
   // A refused frame with the probe in reach is tried again at another pose (the session's
   // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
@@ -442,7 +447,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const SeamLoads loads = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
                           : cut_back                      ? SeamLoads::kHalve
                           : !refused                      ? SeamLoads::kRemember
-                          : touched == 0                  ? SeamLoads::kHalve
+                          : in_reach == 0                 ? SeamLoads::kHalve
                                                           : SeamLoads::kKeep;
   if (refused) {
     revert_frame(stepped);
@@ -491,7 +496,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   }
   finish_frame(loads);
   if (shares) after_steps_us_ = std::max<std::int64_t>(left_after_steps_us - time_left_us(), 0);
-  stats_.sub_volumes_touched = touched;
+  stats_.sub_volumes_touched = in_reach;
   stats_.sub_volumes_stepped = next;
   stats_.sub_volumes_deferred = 0;
   for (const auto& sub : subs_) stats_.sub_volumes_deferred += !sub.stepped && !sub.asleep;
@@ -505,11 +510,13 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
   for (int s = 0; s < count; ++s) {
     SubVolume& sub = subs_[s];
     sub.touched = probe != nullptr && within_reach(sub, *probe);
-    if (sub.touched) {
+    // A sub-volume the last frame's torn seam was left standing on steps with the touched ones.
+    if (sub.touched || step_next_[s]) {
       sub.asleep = false;
       due_[s] = 1;
       schedule_.push_back(s);
     }
+    step_next_[s] = 0;
   }
   const int touched = static_cast<int>(schedule_.size());
   if (!settings_.selective) {
@@ -742,11 +749,16 @@ bool StitchedVolume::tears_a_seam() {
   // alike under the corrections.
   for_each_moved_seam_node([](const SubVolume& sub, int) { return sub.stepped; },
                            [&](int g) {
-                             if (torn) return;
                              const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
                                                       ? seam_gap_mm_[g] + kWideningToleranceMm
                                                       : settings_.refuse_gap_mm;
-                             torn = widest_copy_gap_mm(g) > limit;
+                             if (!(widest_copy_gap_mm(g) > limit)) return;
+                             torn = true;
+                             // Its copies in sub-volumes that did not step stood still while
+                             // the others moved away: they step in the next frame.
+                             for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+                               if (!subs_[copies_[c].sub].stepped) step_next_[copies_[c].sub] = 1;
+                             }
                            });
   return torn;
 }

@@ -171,8 +171,8 @@ class StitchedVolume final : public DeformationEngine {
                          std::span<const std::uint8_t> fixed_nodes, EngineKind method,
                          const EngineSettings& engine_settings, hal::JobSystem* jobs);
   void build_copies(std::span<const Material> tet_materials);
-  // The order this frame's sub-volumes step in (schedule_), touched ones first; returns how many
-  // of them are touched.
+  // The order this frame's sub-volumes step in (schedule_), those that must step first (the
+  // touched ones and those a torn seam left standing, step_next_); returns how many must.
   int plan_frame(const ProbeCollider* probe);
   // Reorders schedule_'s first `due` entries (the first `touched` of them touched) into batches
   // of `batch` (one per thread) whose sub-volumes share the fewest seam nodes; returns how many
@@ -273,6 +273,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> batched_;
   std::vector<std::uint8_t> placed_;
   std::vector<std::uint8_t> due_;
+  // Per sub-volume: holds a copy of a seam node the last frame tore without stepping it; it
+  // steps in the next frame whatever the time.
+  std::vector<std::uint8_t> step_next_;
   std::vector<Eigen::Vector3d> shown_;
   // Per grid node: the widest gap between its copies and the strongest pull on one, as of the
   // last frame any of its copies moved (0 where not shared); and a stamp, so that a loop over
