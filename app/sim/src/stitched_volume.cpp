@@ -309,7 +309,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
       std::ranges::count_if(subs_, [](const SubVolume& sub) { return sub.touched; }));
   const int batch = jobs_ != nullptr ? std::max(1, jobs_->thread_count()) : 1;
   // The sub-volumes the probe may touch always step: skipping one would let the probe pass
-  // through the tissue.
+  // through the tissue. So do those a torn seam left standing last frame.
   // The first exchange picks which sub-volumes step this frame; the others step the same ones.
   const int parts = exchanges_per_frame_;
   const double part_dt_s = frame_dt_s / parts;
@@ -440,6 +440,11 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const bool cut_back =
       refused && refusal == DivergenceCause::kSeamTorn && in_reach == 0 && cut_back_frame(stepped);
   refused = refused && !cut_back;
+  // A sub-volume marked to step has, once its frame is kept; the marks of a frame cut back came
+  // from tears its kept part does not have.
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    if (cut_back || (!refused && subs_[s].stepped)) step_next_[s] = 0;
+  }
   // A refused frame with the probe in reach is tried again at another pose (the session's
   // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
   // A frame cut back is the tissue springing back with nothing in reach: the loads are
@@ -516,7 +521,6 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
       due_[s] = 1;
       schedule_.push_back(s);
     }
-    step_next_[s] = 0;
   }
   const int touched = static_cast<int>(schedule_.size());
   if (!settings_.selective) {
@@ -527,6 +531,7 @@ int StitchedVolume::plan_frame(const ProbeCollider* probe) {
   } else {
     // Neighbours of touched sub-volumes (faces, edges and corners).
     for (int t = 0; t < touched; ++t) {
+      if (!subs_[schedule_[t]].touched) continue;  // one a torn seam left standing
       const Eigen::Vector3i centre = subs_[schedule_[t]].box.index;
       for (int s = 0; s < count; ++s) {
         if (due_[s]) continue;
@@ -732,14 +737,14 @@ bool StitchedVolume::refuses_frame(std::span<const int> stepped, DivergenceCause
       return true;
     }
   }
-  if (tears_a_seam()) {
+  if (tears_a_seam(true)) {
     cause = DivergenceCause::kSeamTorn;
     return true;
   }
   return false;
 }
 
-bool StitchedVolume::tears_a_seam() {
+bool StitchedVolume::tears_a_seam(bool mark_standing) {
   // A seam already past the bound may close or hold, not widen by more than rounding and a
   // still probe's warm-started drift (refusing those would hold the probe at random); one
   // within it may not cross it.
@@ -749,13 +754,15 @@ bool StitchedVolume::tears_a_seam() {
   // alike under the corrections.
   for_each_moved_seam_node([](const SubVolume& sub, int) { return sub.stepped; },
                            [&](int g) {
+                             if (torn && !mark_standing) return;
                              const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
                                                       ? seam_gap_mm_[g] + kWideningToleranceMm
                                                       : settings_.refuse_gap_mm;
                              if (!(widest_copy_gap_mm(g) > limit)) return;
                              torn = true;
-                             // Its copies in sub-volumes that did not step stood still while
-                             // the others moved away: they step in the next frame.
+                             if (!mark_standing) return;
+                             // Its copies in sub-volumes that did not step were left where
+                             // they were while the others moved away: they step next frame.
                              for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
                                if (!subs_[copies_[c].sub].stepped) step_next_[copies_[c].sub] = 1;
                              }
@@ -797,7 +804,7 @@ bool StitchedVolume::cut_back_frame(std::span<const int> stepped) {
       sub.engine->set_displacements_mm(sub.cut_back_mm);
       sub.positions_mm = sub.engine->deformed_positions_mm();
     });
-    if (!tears_a_seam()) return true;
+    if (!tears_a_seam(false)) return true;
   }
   return false;  // the caller reverts the frame
 }
@@ -1049,6 +1056,7 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   }
   // Copies put alike carry no load between them.
   std::fill(seam_load_mn_.begin(), seam_load_mn_.end(), Eigen::Vector3d::Zero());
+  std::fill(step_next_.begin(), step_next_.end(), 0);
   std::fill(seam_pull_before_mn_.begin(), seam_pull_before_mn_.end(), Eigen::Vector3d::Zero());
   for (auto& sub : subs_) {
     Eigen::VectorXd local(3 * static_cast<Eigen::Index>(sub.global_node.size()));

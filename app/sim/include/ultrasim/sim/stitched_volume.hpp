@@ -217,8 +217,10 @@ class StitchedVolume final : public DeformationEngine {
   // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
   // than it was): a torn seam. `cause` says which.
   bool refuses_frame(std::span<const int> stepped, DivergenceCause& cause);
-  // Whether a seam of a stepped sub-volume is now wider than refuse_gap_mm and than last frame.
-  bool tears_a_seam();
+  // Whether a seam of a stepped sub-volume is now wider than refuse_gap_mm and than last frame;
+  // with mark_standing, marks in step_next_ the sub-volumes that did not step holding a copy of
+  // a torn seam's node.
+  bool tears_a_seam(bool mark_standing);
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
   // The displacements the frame found the sub-volume at, into its revert_mm.
