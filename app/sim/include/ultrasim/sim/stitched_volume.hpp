@@ -174,9 +174,10 @@ class StitchedVolume final : public DeformationEngine {
   // The order this frame's sub-volumes step in (schedule_), those that must step first (the
   // touched ones and those a torn seam left standing, step_next_); returns how many must.
   int plan_frame(const ProbeCollider* probe);
-  // Reorders schedule_'s first `due` entries (the first `touched` of them touched) into batches
-  // of `batch` (one per thread) whose sub-volumes share the fewest seam nodes; returns how many
-  // of its first entries must step: through the last batch that holds a touched one.
+  // Reorders schedule_'s first `due` entries (the first `touched` of them must step: in the
+  // probe's reach or left standing by a torn seam) into batches of `batch` (one per thread)
+  // whose sub-volumes share the fewest seam nodes; returns how many of its first entries must
+  // step: through the last batch that holds one that must.
   int order_into_batches(int touched, int due, int batch);
   // Order among the due sub-volumes not touched: seam pull × (1 + frames waited).
   double priority(int sub) const;
