@@ -706,24 +706,37 @@ TEST(CorotationalFem, CheckingKeptTurnsEveryOtherFrameFollowsTheEveryFrameEngine
       100.0 * max_nodal_norm(other.back() - every.back()) / peak, other_updates, every_updates);
 }
 
+// An engine on the block checking a kept turn once in `interval` steps (every turned tet taken,
+// one CG iteration a frame), stepped at rest until its first full check has passed: nothing
+// turned, so every later check is the interval's.
+std::unique_ptr<CorotationalFem> checking_once_an_interval_at_rest(const Block& b, int interval) {
+  CorotationalSettings settings = budget(1);
+  settings.max_rotation_updates_fraction = 1.0;
+  settings.turn_check_interval_frames = interval;
+  auto fem = std::make_unique<CorotationalFem>(b.mesh, b.materials, b.fixed, settings);
+  for (int frame = 0; frame < 3; ++frame) fem->step(nullptr, 1.0 / 30);
+  EXPECT_EQ(fem->rotations_updated(), 0);
+  return fem;
+}
+
+// The block twisted about the vertical by up to 0.2 rad along x (from its x = −20 mm face).
+Eigen::VectorXd gentle_twist(const Block& b) {
+  return twisted_about_z(b.mesh.rest_positions_mm,
+                         [](const Eigen::Vector3d& p) { return 0.2 * (p.x() + 20.0) / 40.0; });
+}
+
 // The interval skips: a shape moved by displace_free_nodes_mm() (a correction's small move, not
 // a shape set from outside) is checked in parts, one in `interval` of the tets within the
 // tolerance a step, and the rest of the turned tets take their rotations in the steps after.
 TEST(CorotationalFem, TurnsWithinTheToleranceAreCheckedOneIntervalPartAStep) {
   Block b = make_block(30.0, 0.45, {17, 9, 9});
   const auto rotations_taken = [&](int interval) {
-    CorotationalSettings settings = budget(1);
-    settings.max_rotation_updates_fraction = 1.0;
-    settings.turn_check_interval_frames = interval;
-    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
-    for (int frame = 0; frame < 3; ++frame) fem.step(nullptr, 1.0 / 30);  // at rest: none turned
-    fem.displace_free_nodes_mm(
-        twisted_about_z(b.mesh.rest_positions_mm,
-                        [](const Eigen::Vector3d& p) { return 0.2 * (p.x() + 20.0) / 40.0; }));
+    const auto fem = checking_once_an_interval_at_rest(b, interval);
+    fem->displace_free_nodes_mm(gentle_twist(b));
     std::vector<int> taken;
     for (int frame = 0; frame < interval; ++frame) {
-      fem.step(nullptr, 1.0 / 30);
-      taken.push_back(fem.rotations_updated());
+      fem->step(nullptr, 1.0 / 30);
+      taken.push_back(fem->rotations_updated());
     }
     return taken;
   };
@@ -752,17 +765,10 @@ TEST(CorotationalFem, TurnsWithinTheToleranceAreCheckedOneIntervalPartAStep) {
 TEST(CorotationalFem, AShapeSetFromOutsideHasEveryTurnChecked) {
   Block b = make_block(30.0, 0.45, {17, 9, 9});
   const auto rotations_taken = [&](int interval) {
-    CorotationalSettings settings = budget(1);
-    settings.max_rotation_updates_fraction = 1.0;
-    settings.turn_check_interval_frames = interval;
-    CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
-    for (int frame = 0; frame < 3; ++frame) fem.step(nullptr, 1.0 / 30);  // at rest: none turned
-    EXPECT_EQ(fem.rotations_updated(), 0);
-    fem.set_displacements_mm(
-        twisted_about_z(b.mesh.rest_positions_mm,
-                        [](const Eigen::Vector3d& p) { return 0.2 * (p.x() + 20.0) / 40.0; }));
-    fem.step(nullptr, 1.0 / 30);
-    return fem.rotations_updated();
+    const auto fem = checking_once_an_interval_at_rest(b, interval);
+    fem->set_displacements_mm(gentle_twist(b));
+    fem->step(nullptr, 1.0 / 30);
+    return fem->rotations_updated();
   };
   const int every = rotations_taken(1);
   EXPECT_GT(every, 0);
