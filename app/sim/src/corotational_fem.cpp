@@ -179,6 +179,11 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (settings.turn_check_interval_frames < 1) {
     throw std::invalid_argument("turn_check_interval_frames must be 1 or more");
   }
+  if (settings.rotation_update_interval_frames < 1 || settings.rotation_update_phase < 0 ||
+      settings.rotation_update_phase >= settings.rotation_update_interval_frames) {
+    throw std::invalid_argument(
+        "rotation_update_interval_frames must be 1 or more, rotation_update_phase in [0, it)");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -676,6 +681,13 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
   });
 }
 
+void CorotationalFem::keep_rotations() {
+  // Nothing moved: the assembly then updates only what a changed load needs.
+  std::fill(rotation_moved_.begin(), rotation_moved_.end(), 0);
+  std::fill(node_moved_.begin(), node_moved_.end(), 0);
+  rotations_updated_ = 0;
+}
+
 int CorotationalFem::rotation_update_cap() const {
   return std::max(1, static_cast<int>(std::ceil(settings_.max_rotation_updates_fraction *
                                                 static_cast<double>(tet_count()))));
@@ -984,8 +996,14 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
                                              const StepBudget& may_continue) {
   u_before_step_ = u_;
   apply_constraints(probe);
-  update_rotations(settings_.rotation_update_tolerance, rotation_update_cap(),
-                   settings_.turn_check_interval_frames);
+  const int update_interval = settings_.rotation_update_interval_frames;
+  if (check_every_tet_ || step_count_ % update_interval == settings_.rotation_update_phase) {
+    update_rotations(settings_.rotation_update_tolerance, rotation_update_cap(),
+                     settings_.turn_check_interval_frames);
+  } else {
+    keep_rotations();
+  }
+  ++step_count_;
   assemble_warped_system();
   const PcgResult pcg =
       run_pcg(settings_.pcg_iterations_per_frame, settings_.relative_tolerance, may_continue);

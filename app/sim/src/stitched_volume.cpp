@@ -66,9 +66,11 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
     throw std::invalid_argument(
         "StitchedVolume: exchanges_per_frame and corotational_exchanges_per_frame must be >= 1");
   }
-  if (stitching.corotational_turn_check_interval_frames < 1) {
+  if (stitching.corotational_turn_check_interval_frames < 1 ||
+      stitching.corotational_rotation_update_interval_frames < 1) {
     throw std::invalid_argument(
-        "StitchedVolume: corotational_turn_check_interval_frames must be >= 1");
+        "StitchedVolume: corotational_turn_check_interval_frames and "
+        "corotational_rotation_update_interval_frames must be >= 1");
   }
   if (stitching.msds_exchanges_per_frame < 1 ||
       engine_settings.msds.steps_per_frame % stitching.msds_exchanges_per_frame != 0) {
@@ -186,10 +188,15 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
         std::max(1, settings.fem.pcg_iterations_per_frame / parts);
     settings.corotational.pcg_iterations_per_frame =
         std::max(1, settings.corotational.pcg_iterations_per_frame / parts);
+    const bool stick = settings.corotational.contact.model == HeldContactModel::kStick;
     settings.corotational.turn_check_interval_frames =
-        settings.corotational.contact.model == HeldContactModel::kStick
-            ? 1
-            : settings_.corotational_turn_check_interval_frames;
+        stick ? 1 : settings_.corotational_turn_check_interval_frames;
+    // Neighbours update in turn, so a frame with many sub-volumes in the probe's reach pays for
+    // about 1 / interval of their rotations.
+    settings.corotational.rotation_update_interval_frames =
+        stick ? 1 : settings_.corotational_rotation_update_interval_frames;
+    settings.corotational.rotation_update_phase =
+        sub.box.index.sum() % settings.corotational.rotation_update_interval_frames;
     for (double* fraction :
          {&settings.fem.max_inverted_fraction, &settings.msds.max_inverted_fraction,
           &settings.exact.max_inverted_fraction, &settings.corotational.max_inverted_fraction}) {

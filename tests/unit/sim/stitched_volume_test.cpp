@@ -666,6 +666,29 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   EXPECT_THROW(
       StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, unchecked),
       std::invalid_argument);
+  // They update their warped systems once in their own interval, neighbours in turn; one piece
+  // and the stick contact every step.
+  const auto update = [](const StitchedVolume& v, int s) {
+    const auto& settings = dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).settings();
+    return std::pair{settings.rotation_update_interval_frames, settings.rotation_update_phase};
+  };
+  StitchingSettings in_turn{.sub_volumes = {2, 1, 1}};
+  in_turn.corotational_rotation_update_interval_frames = 2;
+  const StitchedVolume alternating(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
+                                   in_turn);
+  EXPECT_EQ(update(alternating, 0), std::pair(2, 0));
+  EXPECT_EQ(update(alternating, 1), std::pair(2, 1));
+  EXPECT_EQ(EngineSettings{}.corotational.rotation_update_interval_frames, 1);
+  EXPECT_EQ(update(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
+                                  testing::stick_contact(), in_turn),
+                   1),
+            std::pair(1, 0))
+      << "the stick contact updates every step";
+  StitchingSettings never{.sub_volumes = {2, 1, 1}};
+  never.corotational_rotation_update_interval_frames = 0;
+  EXPECT_THROW(
+      StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, never),
+      std::invalid_argument);
   // Each method its own: the PCG FEM's two, the MSDS's and the corotational FEM's one.
   for (const auto& [kind, exchanges] :
        {std::pair{EngineKind::kPcgFem, 2}, std::pair{EngineKind::kCorotationalFem, 1},

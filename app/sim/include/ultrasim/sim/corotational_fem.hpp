@@ -205,6 +205,9 @@ class CorotationalFem final : public DeformationEngine {
   // after set_displacements_mm()), so a tet that turns or is lost between its checks takes its
   // rotation up to check_interval − 1 calls late.
   void update_rotations(double tolerance, int max_updates, int check_interval);
+  // A step between the warped system's updates (rotation_update_interval_frames): no tet's
+  // rotation moves.
+  void keep_rotations();
   // settings.max_rotation_updates_fraction of the tets (one at least).
   int rotation_update_cap() const;
   // Tet t's deformation gradient at the current displacements.
@@ -290,6 +293,7 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
   std::vector<double> turn_;                  // per tet: its turn at its last check
   std::int64_t turn_check_frame_ = 0;         // update_rotations() calls so far
+  std::int64_t step_count_ = 0;               // step_within() calls so far
   bool check_every_tet_ = true;               // the next update checks every tet's turn
   std::vector<double> turn_scratch_;          // the turns past the tolerance (capacity: tets)
   // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out

@@ -129,6 +129,13 @@ struct CorotationalSettings {
   // from outside). 1 (one piece): every tet every frame. A stitched volume's sub-volumes take
   // [stitching] corotational_turn_check_interval_frames.
   int turn_check_interval_frames = 1;
+  // The warped system (turns checked, rotations extracted, their blocks and rhs summed again) is
+  // brought up to date in one step of this many, the rotation_update_phase-th (counted from
+  // construction); the steps between solve the last one (every step after the shape is set from
+  // outside). 1 (one piece): every step. A stitched volume's sub-volumes take [stitching]
+  // corotational_rotation_update_interval_frames, their phases alternating between neighbours.
+  int rotation_update_interval_frames = 1;
+  int rotation_update_phase = 0;  // in [0, rotation_update_interval_frames)
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };
@@ -240,6 +247,17 @@ struct StitchingSettings {
   // nothing gained), checks every frame: a tet found turned a frame late lags a sliding probe
   // further (docs/benchmarks.md, docs/accuracy.md).
   int corotational_turn_check_interval_frames = 2;
+  // A stitched corotational sub-volume brings its warped system up to date in one of this many
+  // steps (CorotationalSettings::rotation_update_interval_frames), neighbours in turn, and solves
+  // the last one in between; 1 under the stick contact, as the turn check. Under the large
+  // case's seam presses the rotations' work was 0.8 of a touched step's 1.5 ms and the CG had one
+  // iteration a frame: at 2 the frames over 16.7 ms (the rendering at its reserve) fell from 601
+  // to 97 of 1,315, and the time freed went to the CG, whose one iteration a frame had left the
+  // held forces 1.5-1.7 times those of the same run solved each frame (the presses across the
+  // seams came nearest it: 17.9 N held against 21.4, solved 14.1; the others within 3.5 %). A
+  // CG with time to converge pays for the halved rotations instead: twice the RMS error against
+  // every rotation exact, still under 1 % of the peak (docs/benchmarks.md, docs/accuracy.md).
+  int corotational_rotation_update_interval_frames = 2;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
   // added to every sub-volume, so a disturbance reaches across the region in one frame instead
