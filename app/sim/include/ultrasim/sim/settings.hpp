@@ -251,12 +251,12 @@ struct StitchingSettings {
   // steps (CorotationalSettings::rotation_update_interval_frames), neighbours in turn, and solves
   // the last one in between; 1 under the stick contact, as the turn check. Under the large
   // case's seam presses the rotations' work was 0.8 of a touched step's 1.5 ms and the CG had one
-  // iteration a frame: at 2 the frames over 16.7 ms (the rendering at its reserve) fell from 601
-  // to 97 of 1,315, and the time freed went to the CG, whose one iteration a frame had left the
-  // held forces 1.5-1.7 times those of the same run solved each frame (the presses across the
-  // seams came nearest it: 17.9 N held against 21.4, solved 14.1; the others within 3.5 %). A
-  // CG with time to converge pays for the halved rotations instead: twice the RMS error against
-  // every rotation exact, still under 1 % of the peak (docs/benchmarks.md, docs/accuracy.md).
+  // iteration a frame: at 2 the frames over 16.7 ms (the rendering at its reserve) fell from
+  // 294-319 to 53-125 of 1,315, and the time freed went to the CG, whose one iteration a frame
+  // holds the forces at 1.5-1.7 times those of the same run solved each frame (no held marker
+  // moved away from it, some nearer). A CG with time to converge pays for the halved rotations
+  // instead: twice the RMS error against every rotation exact, still under 1 % of the peak
+  // (docs/benchmarks.md, docs/accuracy.md).
   int corotational_rotation_update_interval_frames = 2;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
