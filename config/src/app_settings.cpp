@@ -279,14 +279,15 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
   t.add(field("corotational_turn_check_interval_frames",
               &S::corotational_turn_check_interval_frames, IntegerIn<int>{1, 100},
               "Corotational FEM: a sub-volume checks a tet found within [corotational] "
-              "rotation_update_tolerance once in this many frames (one turned past it every "
-              "frame); 1: every tet every frame, as one piece does."));
+              "rotation_update_tolerance once in this many updates of its warped system (one "
+              "turned past it at every update); 1: every tet at every update, as one piece "
+              "does."));
   t.add(field("corotational_rotation_update_interval_frames",
               &S::corotational_rotation_update_interval_frames, IntegerIn<int>{1, 100},
               "Corotational FEM: a sub-volume checks turns, extracts rotations and sums its "
-              "blocks again in one of this many frames (neighbours in turn) and solves the last "
-              "system in between; 1: every frame, as one piece does (and under the stick "
-              "contact)."));
+              "blocks again in one of this many seam exchanges (a frame of N exchanges takes N; "
+              "face neighbours in turn) and solves the last system in between; 1: every step, "
+              "as one piece does (and under the stick contact)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

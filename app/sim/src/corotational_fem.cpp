@@ -616,11 +616,11 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
   const int chunks = tet_chunks();
   // The tets' turns, then those past the tolerance, or the max_updates most turned of them. A
   // tet with no rotation near the one it holds (inverted, collapsed, its symmetric part not
-  // positive definite: an infinite turn) takes a new one every frame, outside the cap: ranked
+  // positive definite: an infinite turn) takes a new one at every update, outside the cap: ranked
   // first, such tets under a deep press filled the cap, the same ones frame after frame, and no
   // other tet's rotation moved while the probe stayed.
   // A tet found within the tolerance at its last check is checked again once every
-  // check_interval steps (a tet past it, lost, or given a new rotation at it: every step): the
+  // check_interval updates (a tet past it, lost, or given a new rotation at it: every update): the
   // check is the fixed work's largest part (a stitched sub-volume's 13,720 tets: 0.48 of its
   // 1.7 ms a touched step), and a tet found turned a step later has turned a step further, as
   // one the cap leaves does.
@@ -997,7 +997,9 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
   u_before_step_ = u_;
   apply_constraints(probe);
   const int update_interval = settings_.rotation_update_interval_frames;
-  if (check_every_tet_ || step_count_ % update_interval == settings_.rotation_update_phase) {
+  warped_system_updated_ =
+      check_every_tet_ || step_count_ % update_interval == settings_.rotation_update_phase;
+  if (warped_system_updated_) {
     update_rotations(settings_.rotation_update_tolerance, rotation_update_cap(),
                      settings_.turn_check_interval_frames);
   } else {

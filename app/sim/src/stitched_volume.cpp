@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "ultrasim/sim/corotational_fem.hpp"
+
 namespace ultrasim::sim {
 
 namespace {
@@ -191,7 +193,8 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     const bool stick = settings.corotational.contact.model == HeldContactModel::kStick;
     settings.corotational.turn_check_interval_frames =
         stick ? 1 : settings_.corotational_turn_check_interval_frames;
-    // Neighbours update in turn, so a frame with many sub-volumes in the probe's reach pays for
+    // Face neighbours update in turn (on the volume's exchange clock, set before each step,
+    // whichever of them step), so a frame with many sub-volumes in the probe's reach pays for
     // about 1 / interval of their rotations.
     settings.corotational.rotation_update_interval_frames =
         stick ? 1 : settings_.corotational_rotation_update_interval_frames;
@@ -208,6 +211,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("StitchedVolume: " + sub_name(sub.box) + ": " + e.what());
     }
+    sub.corotational = dynamic_cast<CorotationalFem*>(sub.engine.get());
     if (!sub.engine->supports_anchor_springs()) {
       throw std::invalid_argument("StitchedVolume: " + std::string(sub.engine->name()) +
                                   " cannot be stitched (it takes no anchor springs); use pcg, "
@@ -320,6 +324,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // The first exchange picks which sub-volumes step this frame; the others step the same ones.
   const int parts = exchanges_per_frame_;
   const double part_dt_s = frame_dt_s / parts;
+  ++exchange_count_;  // the first exchange's
   // The sub-volumes take the frame's budget as one piece does: the CG methods iterate while the
   // frame has time (warm-started, they catch up over the next frames), the explicit MSDS steps
   // while there is time and retries a rejected frame with smaller steps only while there is. The
@@ -423,6 +428,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // (the part's: what is left over the parts to go).
   const int batches_stepped = (next + batch - 1) / batch;
   for (int part = 1; part < parts; ++part) {
+    ++exchange_count_;
     const std::int64_t part_us =
         shares ? std::max<std::int64_t>(time_left_us() - after_steps_us_, 0) / (parts - part) : 0;
     for (int j = 0; j < batches_stepped; ++j) {
@@ -693,6 +699,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       const auto before = sub.engine->deformed_positions_mm();
       std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
     }
+    if (sub.corotational != nullptr) sub.corotational->set_update_clock(exchange_count_);
     const EngineStepStats s = sub.engine->step_within(probe, frame_dt_s, budget);
     if (first_part) {
       sub.last_stats = s;

@@ -786,43 +786,45 @@ TEST(CorotationalFem, UpdatingTheWarpedSystemEveryOtherStepFollowsTheEveryStepEn
 }
 
 // Between its updates the engine moves no rotation, however the shape turned, and solves the
-// system it last had; its phase picks the step that updates; a shape set from outside is
-// updated on the next step whatever the phase.
+// system it last had; its phase (on its own steps, or on the clock set from outside) picks the
+// steps that update; the first step, and the first after a shape set from outside, update
+// whatever the phase. Each step is preceded by a twist there and back (a correction's move, not
+// a shape set from outside), so every update finds turned tets.
 TEST(CorotationalFem, BetweenItsUpdatesTheWarpedSystemStaysAsItWas) {
   Block b = make_block(30.0, 0.45, {17, 9, 9});
+  const Eigen::VectorXd twist = gentle_twist(b);
   for (int phase : {0, 1}) {
     CorotationalSettings settings = budget(1);
     settings.max_rotation_updates_fraction = 1.0;
     settings.rotation_update_interval_frames = 2;
     settings.rotation_update_phase = phase;
     CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
-    fem.step(nullptr, 1.0 / 30);  // the first step updates, whatever the phase
-    fem.step(nullptr, 1.0 / 30);  // at rest: nothing turned
-    EXPECT_EQ(fem.rotations_updated(), 0);
-    // Turned by a correction's move (not set from outside): the interval's next update takes it.
-    fem.displace_free_nodes_mm(gentle_twist(b));
-    const Eigen::SparseMatrix<double, Eigen::RowMajor> before = fem.warped_stiffness();
-    std::vector<int> taken;
-    for (int step = 2; step < 4; ++step) {
+    const auto twisted_step = [&](int step) {
+      fem.displace_free_nodes_mm((step % 2 == 0 ? 1.0 : -1.0) * twist);
       const Eigen::SparseMatrix<double, Eigen::RowMajor> at_start = fem.warped_stiffness();
       fem.step(nullptr, 1.0 / 30);
-      taken.push_back(fem.rotations_updated());
-      const bool updates = step % 2 == phase;
-      EXPECT_EQ(taken.back() > 0, updates) << "phase " << phase << ", step " << step;
-      if (!updates) {
+      if (!fem.warped_system_updated()) {
+        EXPECT_EQ(fem.rotations_updated(), 0) << "phase " << phase << ", step " << step;
         EXPECT_EQ((fem.warped_stiffness() - at_start).norm(), 0.0)
             << "phase " << phase << ", step " << step;
+      } else {
+        EXPECT_GT(fem.rotations_updated(), 0) << "phase " << phase << ", step " << step;
       }
+      return fem.warped_system_updated();
+    };
+    for (int step = 0; step < 6; ++step) {
+      EXPECT_EQ(twisted_step(step), step == 0 || step % 2 == phase)
+          << "phase " << phase << ", step " << step;
     }
-    EXPECT_GT((fem.warped_stiffness() - before).norm(), 0.0);
-    // Set from outside (back at rest, every twisted tet turned back): the next step updates,
-    // though its phase would not.
-    if (phase == 0) fem.step(nullptr, 1.0 / 30);  // step 4, phase 0's
-    fem.set_displacements_mm(Eigen::VectorXd::Zero(3 * b.mesh.node_count()));
-    fem.step(nullptr, 1.0 / 30);
-    EXPECT_GT(fem.rotations_updated(), 0) << "phase " << phase;
-    std::printf("phase %d: rotations taken %d, %d; after a shape set from outside %d\n", phase,
-                taken[0], taken[1], fem.rotations_updated());
+    // Set from outside: the next step updates, though its phase would not.
+    if (phase == 0) twisted_step(6);  // phase 0's own
+    fem.set_displacements_mm(twist);
+    EXPECT_TRUE(twisted_step(7)) << "phase " << phase;
+    // On a clock set from outside (a stitched volume's exchanges).
+    fem.set_update_clock(100 + phase);
+    EXPECT_TRUE(twisted_step(8)) << "phase " << phase;
+    fem.set_update_clock(101 + phase);
+    EXPECT_FALSE(twisted_step(9)) << "phase " << phase;
   }
   CorotationalSettings bad = budget(1);
   bad.rotation_update_interval_frames = 2;

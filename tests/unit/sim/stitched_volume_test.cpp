@@ -666,18 +666,34 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   EXPECT_THROW(
       StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, unchecked),
       std::invalid_argument);
-  // They update their warped systems once in their own interval, neighbours in turn; one piece
-  // and the stick contact every step.
+  // Each method its own: the PCG FEM's two, the MSDS's and the corotational FEM's one.
+  for (const auto& [kind, exchanges] :
+       {std::pair{EngineKind::kPcgFem, 2}, std::pair{EngineKind::kCorotationalFem, 1},
+        std::pair{EngineKind::kMsdsExplicit, 1}}) {
+    EXPECT_EQ(StitchedVolume(r.grid, r.materials, r.fixed, kind, {}, {.sub_volumes = {2, 1, 1}})
+                  .exchanges_per_frame(),
+              exchanges)
+        << engine_key(kind);
+  }
+}
+
+// The corotational sub-volumes update their warped systems once in their interval, face
+// neighbours in alternate phases (a checkerboard of the split); one piece and the stick contact
+// every step.
+TEST(StitchedVolume, CorotationalSubVolumesUpdateTheirWarpedSystemsInTurn) {
+  const Region r = make_region({26, 26, 5});
   const auto update = [](const StitchedVolume& v, int s) {
     const auto& settings = dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).settings();
     return std::pair{settings.rotation_update_interval_frames, settings.rotation_update_phase};
   };
-  StitchingSettings in_turn{.sub_volumes = {2, 1, 1}};
+  StitchingSettings in_turn{.sub_volumes = {2, 2, 1}};
   in_turn.corotational_rotation_update_interval_frames = 2;
   const StitchedVolume alternating(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
                                    in_turn);
-  EXPECT_EQ(update(alternating, 0), std::pair(2, 0));
-  EXPECT_EQ(update(alternating, 1), std::pair(2, 1));
+  for (int s = 0; s < alternating.sub_volume_count(); ++s) {
+    EXPECT_EQ(update(alternating, s), std::pair(2, alternating.box(s).index.sum() % 2));
+  }
+  EXPECT_EQ(update(alternating, 3).second, 0) << "sub-volume (1, 1, 0)";
   EXPECT_EQ(EngineSettings{}.corotational.rotation_update_interval_frames, 1);
   EXPECT_EQ(update(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
                                   testing::stick_contact(), in_turn),
@@ -689,14 +705,36 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   EXPECT_THROW(
       StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, never),
       std::invalid_argument);
-  // Each method its own: the PCG FEM's two, the MSDS's and the corotational FEM's one.
-  for (const auto& [kind, exchanges] :
-       {std::pair{EngineKind::kPcgFem, 2}, std::pair{EngineKind::kCorotationalFem, 1},
-        std::pair{EngineKind::kMsdsExplicit, 1}}) {
-    EXPECT_EQ(StitchedVolume(r.grid, r.materials, r.fixed, kind, {}, {.sub_volumes = {2, 1, 1}})
-                  .exchanges_per_frame(),
-              exchanges)
-        << engine_key(kind);
+}
+
+// Neighbours update in turn whichever of them stepped before: the phase is read on the volume's
+// own clock, not on each sub-volume's steps. Three sub-volumes in a row: the probe in the first
+// for three frames (the second steps beside it, the third rests), then in the third (the second
+// and the third step). Counted on their own steps, the second (fourth step, phase 1) and the
+// third (second step, phase 0) would update in the same frames.
+TEST(StitchedVolume, NeighboursUpdateInTurnWhicheverOfThemSteppedBefore) {
+  const Region r = make_region({38, 8, 6});
+  StitchingSettings stitching{.sub_volumes = {3, 1, 1}};
+  stitching.extra_sub_volumes_per_frame = 0;
+  stitching.corotational_rotation_update_interval_frames = 2;
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, stitching);
+  const auto updated = [&](int s) {
+    return dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).warped_system_updated();
+  };
+  const ProbeCollider first = sphere_probe(6.0, 7.0, 1.5, 4.0);
+  for (int frame = 0; frame < 3; ++frame) {
+    v.step(&first, 1.0 / 60);
+    ASSERT_TRUE(v.stepped(0) && v.stepped(1)) << "frame " << frame;
+    ASSERT_FALSE(v.stepped(2)) << "frame " << frame;
+  }
+  const ProbeCollider third = sphere_probe(68.0, 7.0, 1.5, 4.0);
+  v.step(&third, 1.0 / 60);  // the third's first step: updated whatever its phase
+  ASSERT_TRUE(v.stepped(1) && v.stepped(2));
+  EXPECT_TRUE(updated(2));
+  for (int frame = 4; frame < 8; ++frame) {
+    v.step(&third, 1.0 / 60);
+    ASSERT_TRUE(v.stepped(1) && v.stepped(2)) << "frame " << frame;
+    EXPECT_NE(updated(1), updated(2)) << "frame " << frame;
   }
 }
 

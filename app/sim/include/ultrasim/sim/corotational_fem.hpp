@@ -39,7 +39,9 @@ struct CorotationalConvergence {
 // tet's rotation is extracted from the shape with those nodes moved (a tet whose deformation
 // gradient has turned less than settings.rotation_update_tolerance from its rotation keeps it,
 // and of those turned further at most settings.max_rotation_updates_fraction of all tets, the
-// most turned, take theirs), the warped stiffness K_R = Σ R K_e Rᵀ is assembled into a
+// most turned, take theirs; with settings.rotation_update_interval_frames above 1, only in the
+// steps of its phase, the others solving the last system), the warped stiffness
+// K_R = Σ R K_e Rᵀ is assembled into a
 // block-sparse matrix whose pattern and scatter map were built once (only the blocks of tets
 // whose rotation changed are brought up to date: the old terms of those tets swapped for their
 // new ones where they are fewer than half a block's terms, else the block summed again), and
@@ -84,7 +86,8 @@ class CorotationalFem final : public DeformationEngine {
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
   void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
-  // One frame: contacts, rotations, assembly, pcg_iterations_per_frame CG iterations.
+  // One frame: contacts, rotations and assembly (in the update interval's steps),
+  // pcg_iterations_per_frame CG iterations.
   // Contacts (an active set updated once a frame): nodes inside the probe, or left on its
   // surface, are held at its push-out target; nodes it pushed on last frame stay on its surface
   // as it lifts, until holding them would take a pull; nodes it had to pull on are let go.
@@ -100,8 +103,14 @@ class CorotationalFem final : public DeformationEngine {
   // inverted_tets but never against the limit. Nothing resets to rest: with the probe still deep in
   // the tissue, rest would put nodes far inside it. frame_dt_s is ignored.
   EngineStepStats step(const ProbeCollider* probe, double frame_dt_s) override;
-  // Fewer CG iterations when the budget runs out (one at least); contacts, rotations and the
-  // assembly are done every frame. A frame inverted over the limit tries its shorter updates
+  // The clock rotation_update_interval_frames' phase is read against for the next step (by
+  // default the engine's own steps, counted from construction): a stitched volume sets its own
+  // exchanges', so that its sub-volumes update in turn whichever of them step.
+  void set_update_clock(std::int64_t step) { step_count_ = step; }
+  // Whether the last step brought the warped system up to date (rotation_update_interval_frames).
+  bool warped_system_updated() const { return warped_system_updated_; }
+  // Fewer CG iterations when the budget runs out (one at least); contacts every frame, rotations
+  // and the assembly as in step(). A frame inverted over the limit tries its shorter updates
   // while the budget allows, and then goes back to the previous frame's shape (cut_short).
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
@@ -206,7 +215,7 @@ class CorotationalFem final : public DeformationEngine {
   // rotation up to check_interval − 1 calls late.
   void update_rotations(double tolerance, int max_updates, int check_interval);
   // A step between the warped system's updates (rotation_update_interval_frames): no tet's
-  // rotation moves.
+  // rotation moves, a lost one's neither.
   void keep_rotations();
   // settings.max_rotation_updates_fraction of the tets (one at least).
   int rotation_update_cap() const;
@@ -293,9 +302,10 @@ class CorotationalFem final : public DeformationEngine {
   std::vector<std::uint8_t> rotation_moved_;  // per tet: rotation extracted at the last update
   std::vector<double> turn_;                  // per tet: its turn at its last check
   std::int64_t turn_check_frame_ = 0;         // update_rotations() calls so far
-  std::int64_t step_count_ = 0;               // step_within() calls so far
-  bool check_every_tet_ = true;               // the next update checks every tet's turn
-  std::vector<double> turn_scratch_;          // the turns past the tolerance (capacity: tets)
+  std::int64_t step_count_ = 0;  // the update interval's clock: steps, or set_update_clock()
+  bool warped_system_updated_ = false;
+  bool check_every_tet_ = true;       // the next update checks every tet's turn
+  std::vector<double> turn_scratch_;  // the turns past the tolerance (capacity: tets)
   // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out
   // before their rotations change, in after: two evaluations each), fewer than half its terms;
   // else summed again (one each).

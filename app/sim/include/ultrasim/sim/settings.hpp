@@ -117,23 +117,25 @@ struct CorotationalSettings {
   // At most this fraction of the tets take a new rotation in a frame, the most turned first; the
   // others keep theirs (and turn further) until a later frame has room for them. A tet whose
   // rotation is lost (inverted, collapsed, or too sheared for the one it holds) takes a new one
-  // every frame, outside the cap. Under a deep
-  // press whose CG cannot catch up inside the frame's share, the shape creeps every frame and
+  // at every update (every frame, or rotation_update_interval_frames'), outside the cap. Under a
+  // deep press whose CG cannot catch up inside the frame's share, the shape creeps every frame and
   // 15 % of a stitched sub-volume's tets turned past the tolerance each frame: their rotations
   // and their blocks' sums took the time the CG needed (13 mm presses on the large case's seams:
   // a quarter fewer frames over 16.7 ms at 2 % than without a cap, every marker within 2 % of the
   // uncapped engine's; docs/benchmarks.md, docs/accuracy.md). 1: every tet past the tolerance.
   double max_rotation_updates_fraction = 0.02;
-  // A tet found within rotation_update_tolerance is checked again once in this many steps (a
-  // tet past it, lost, or given a new rotation: every step; every tet after the shape is set
-  // from outside). 1 (one piece): every tet every frame. A stitched volume's sub-volumes take
-  // [stitching] corotational_turn_check_interval_frames.
+  // A tet found within rotation_update_tolerance is checked again once in this many updates of
+  // the warped system (a tet past it, lost, or given a new rotation: at every update; every tet
+  // after the shape is set from outside): once in this × rotation_update_interval_frames steps. 1
+  // (one piece): every tet every frame. A stitched volume's sub-volumes take [stitching]
+  // corotational_turn_check_interval_frames.
   int turn_check_interval_frames = 1;
   // The warped system (turns checked, rotations extracted, their blocks and rhs summed again) is
   // brought up to date in one step of this many, the rotation_update_phase-th (counted from
-  // construction); the steps between solve the last one (every step after the shape is set from
-  // outside). 1 (one piece): every step. A stitched volume's sub-volumes take [stitching]
-  // corotational_rotation_update_interval_frames, their phases alternating between neighbours.
+  // construction, or by CorotationalFem::set_update_clock()); the steps between solve the last
+  // one (the first step after the shape is set from outside updates). 1 (one piece): every step.
+  // A stitched volume's sub-volumes take [stitching]
+  // corotational_rotation_update_interval_frames, face neighbours in alternate phases.
   int rotation_update_interval_frames = 1;
   int rotation_update_phase = 0;  // in [0, rotation_update_interval_frames)
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
@@ -236,7 +238,9 @@ struct StitchingSettings {
   // rad: simulation p50 11.1 against 6.5-6.9 ms; widest seam 0.067 against 0.078 mm).
   int corotational_exchanges_per_frame = 1;
   // A stitched corotational sub-volume checks a tet found within rotation_update_tolerance once
-  // in this many of its steps (CorotationalSettings::turn_check_interval_frames; a frame of
+  // in this many of its warped system's updates (CorotationalSettings::
+  // turn_check_interval_frames; with corotational_rotation_update_interval_frames 2, once in four
+  // steps; a frame of
   // corotational_exchanges_per_frame parts takes that many; 1 under the stick contact, whose
   // answer is where the path caught the nodes: checked every other frame a stitched press
   // settled 8.1 % from one piece against 0.69 %). The check, every tet's
@@ -248,13 +252,14 @@ struct StitchingSettings {
   // further (docs/benchmarks.md, docs/accuracy.md).
   int corotational_turn_check_interval_frames = 2;
   // A stitched corotational sub-volume brings its warped system up to date in one of this many
-  // steps (CorotationalSettings::rotation_update_interval_frames), neighbours in turn, and solves
-  // the last one in between; 1 under the stick contact, as the turn check. Under the large
-  // case's seam presses the rotations' work was 0.8 of a touched step's 1.5 ms and the CG had one
-  // iteration a frame: at 2 the frames over 16.7 ms (the rendering at its reserve) fell from
-  // 294-319 to 53-125 of 1,315, and the time freed went to the CG, whose one iteration a frame
-  // holds the forces at 1.5-1.7 times those of the same run solved each frame (no held marker
-  // moved away from it, some nearer). A CG with time to converge pays for the halved rotations
+  // of the volume's seam exchanges (CorotationalSettings::rotation_update_interval_frames; a
+  // frame of corotational_exchanges_per_frame parts takes that many), face neighbours in turn,
+  // and solves the last one in between; 1 under the stick contact, as the turn check. Under the
+  // large case's seam presses the rotations' work was 0.8 of a touched step's 1.5 ms and the CG had
+  // one iteration a frame: at 2 the frames over 16.7 ms (the rendering at its reserve) fell from
+  // 255-351 to 66-103 of 1,315, and the time freed went to the CG, whose one iteration a frame
+  // held the forces at 1.5 times those of the same run solved each frame (at 2 none moved away
+  // from it, some nearer: 1.3-1.5 times). A CG with time to converge pays for the halved rotations
   // instead: twice the RMS error against every rotation exact, still under 1 % of the peak
   // (docs/benchmarks.md, docs/accuracy.md).
   int corotational_rotation_update_interval_frames = 2;

@@ -22,6 +22,8 @@
 
 namespace ultrasim::sim {
 
+class CorotationalFem;
+
 // Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG and corotational
 // FEMs).
 bool stitchable(EngineKind method);
@@ -134,7 +136,8 @@ class StitchedVolume final : public DeformationEngine {
   struct SubVolume {
     SubVolumeBox box;
     std::unique_ptr<DeformationEngine> engine;
-    std::vector<int> global_node;  // per local node
+    CorotationalFem* corotational = nullptr;  // the engine, if it is one (its update clock)
+    std::vector<int> global_node;             // per local node
     // Shared local nodes (in node order) and, per entry, the grid node it copies.
     std::vector<int> shared_local;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
@@ -262,6 +265,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<double> seam_stiffness_mn_per_mm_;
   std::vector<int> shared_nodes_;  // grid nodes with more than one copy
   int exchanges_per_frame_ = 1;
+  // Seam exchanges so far (a frame's parts each count): the corotational sub-volumes' update
+  // clock, so that neighbours update in turn whichever of them step.
+  std::int64_t exchange_count_ = 0;
   // Per pair of sub-volumes (s × count + t), the grid nodes both hold (0 on the diagonal).
   std::vector<int> shared_node_count_;
   std::vector<std::uint8_t> fixed_;
