@@ -682,8 +682,8 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
 }
 
 void CorotationalFem::keep_rotations() {
-  // Nothing moved: the assembly then updates only what a changed load needs.
-  std::fill(rotation_moved_.begin(), rotation_moved_.end(), 0);
+  // No row moved: the assembly then updates only what a changed load needs (rotation_moved_,
+  // read only for moved rows' blocks, keeps the last update's marks).
   std::fill(node_moved_.begin(), node_moved_.end(), 0);
   rotations_updated_ = 0;
 }
