@@ -640,32 +640,6 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
                               no_corotational),
                std::invalid_argument);
-  // The corotational sub-volumes check a kept turn once in their own interval, one piece every
-  // frame.
-  StitchingSettings every_third{.sub_volumes = {2, 1, 1}};
-  every_third.corotational_turn_check_interval_frames = 3;
-  const StitchedVolume checked(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
-                               every_third);
-  for (int s = 0; s < checked.sub_volume_count(); ++s) {
-    EXPECT_EQ(dynamic_cast<const CorotationalFem&>(checked.sub_volume_engine(s))
-                  .settings()
-                  .turn_check_interval_frames,
-              3);
-  }
-  EXPECT_EQ(EngineSettings{}.corotational.turn_check_interval_frames, 1);
-  EXPECT_EQ(dynamic_cast<const CorotationalFem&>(
-                StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
-                               testing::stick_contact(), every_third)
-                    .sub_volume_engine(0))
-                .settings()
-                .turn_check_interval_frames,
-            1)
-      << "the stick contact checks every frame";
-  StitchingSettings unchecked{.sub_volumes = {2, 1, 1}};
-  unchecked.corotational_turn_check_interval_frames = 0;
-  EXPECT_THROW(
-      StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, unchecked),
-      std::invalid_argument);
   // Each method its own: the PCG FEM's two, the MSDS's and the corotational FEM's one.
   for (const auto& [kind, exchanges] :
        {std::pair{EngineKind::kPcgFem, 2}, std::pair{EngineKind::kCorotationalFem, 1},
@@ -677,13 +651,36 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   }
 }
 
-// The corotational sub-volumes update their warped systems once in their interval, face
-// neighbours in alternate phases (a checkerboard of the split); one piece and the stick contact
-// every step.
-TEST(StitchedVolume, CorotationalSubVolumesUpdateTheirWarpedSystemsInTurn) {
+// The corotational sub-volumes check a kept turn once in their own interval and update their
+// warped systems once in theirs, face neighbours in alternate phases (a checkerboard of the
+// split); one piece and the stick contact every step.
+TEST(StitchedVolume, CorotationalSubVolumesTakeTheirIntervalsAndUpdateInTurn) {
   const Region r = make_region({26, 26, 5});
-  const auto update = [](const StitchedVolume& v, int s) {
-    const auto& settings = dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).settings();
+  const auto settings_of = [](const StitchedVolume& v, int s) -> const CorotationalSettings& {
+    return dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).settings();
+  };
+  StitchingSettings every_third{.sub_volumes = {2, 1, 1}};
+  every_third.corotational_turn_check_interval_frames = 3;
+  const StitchedVolume checked(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {},
+                               every_third);
+  for (int s = 0; s < checked.sub_volume_count(); ++s) {
+    EXPECT_EQ(settings_of(checked, s).turn_check_interval_frames, 3);
+  }
+  EXPECT_EQ(EngineSettings{}.corotational.turn_check_interval_frames, 1);
+  EXPECT_EQ(settings_of(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
+                                       testing::stick_contact(), every_third),
+                        0)
+                .turn_check_interval_frames,
+            1)
+      << "the stick contact checks every frame";
+  StitchingSettings unchecked{.sub_volumes = {2, 1, 1}};
+  unchecked.corotational_turn_check_interval_frames = 0;
+  EXPECT_THROW(
+      StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, unchecked),
+      std::invalid_argument);
+
+  const auto update = [&](const StitchedVolume& v, int s) {
+    const CorotationalSettings& settings = settings_of(v, s);
     return std::pair{settings.rotation_update_interval_frames, settings.rotation_update_phase};
   };
   StitchingSettings in_turn{.sub_volumes = {2, 2, 1}};
