@@ -89,6 +89,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped
       << ", \"sub_volumes_deferred\": " << r.stitching.sub_volumes_deferred
       << ", \"frames_deferring\": " << r.stitching.frames_deferring
+      << ", \"corotational_updates_held\": " << r.stitching.updates_held
       << ", \"max_gap_mm\": " << r.stitching.max_gap_mm << "},\n"
       << "  \"frames\": " << r.frames << ",\n"
       << "  \"frames_in_contact\": " << r.frames_in_contact << ",\n"

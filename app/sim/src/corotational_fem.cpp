@@ -184,6 +184,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
     throw std::invalid_argument(
         "rotation_update_interval_frames must be 1 or more, rotation_update_phase in [0, it)");
   }
+  if (settings.max_update_turns_held < 0) {
+    throw std::invalid_argument("max_update_turns_held must be 0 or more");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -997,8 +1000,13 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
   u_before_step_ = u_;
   apply_constraints(probe);
   const int update_interval = settings_.rotation_update_interval_frames;
-  warped_system_updated_ =
-      check_every_tet_ || step_count_ % update_interval == settings_.rotation_update_phase;
+  const bool due = step_count_ % update_interval == settings_.rotation_update_phase;
+  update_held_ = due && hold_next_update_ && !check_every_tet_ &&
+                 updates_held_in_a_row_ < settings_.max_update_turns_held;
+  hold_next_update_ = false;
+  warped_system_updated_ = check_every_tet_ || (due && !update_held_);
+  if (update_held_) ++updates_held_in_a_row_;
+  if (warped_system_updated_) updates_held_in_a_row_ = 0;
   if (warped_system_updated_) {
     update_rotations(settings_.rotation_update_tolerance, rotation_update_cap(),
                      settings_.turn_check_interval_frames);

@@ -66,6 +66,7 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
             b.stitching.corotational_turn_check_interval_frames);
   EXPECT_EQ(a.stitching.corotational_rotation_update_interval_frames,
             b.stitching.corotational_rotation_update_interval_frames);
+  EXPECT_EQ(a.stitching.corotational_update_turns_held, b.stitching.corotational_update_turns_held);
   EXPECT_EQ(a.stitching.coarse_correction, b.stitching.coarse_correction);
   EXPECT_EQ(a.stitching.seam_load_rate, b.stitching.seam_load_rate);
   EXPECT_EQ(a.stitching.sleep_force_mn, b.stitching.sleep_force_mn);
@@ -173,6 +174,7 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.corotational.max_rotation_updates_fraction = 0.125;
   changed.stitching.corotational_turn_check_interval_frames = 3;
   changed.stitching.corotational_rotation_update_interval_frames = 3;
+  changed.stitching.corotational_update_turns_held = 0;
   changed.stitching.coarse_correction = false;
   changed.stitching.seam_load_rate = 0.5;
   changed.stitching.sleep_force_mn = 0.25;

@@ -785,6 +785,64 @@ TEST(CorotationalFem, UpdatingTheWarpedSystemEveryOtherStepFollowsTheEveryStepEn
   }
 }
 
+// A due update held (hold_next_update: a stitched frame whose time is spent) leaves the warped
+// system as it was, as a step between updates does; at most max_update_turns_held due updates in
+// a row are held, the next is taken whatever; a hold asked before a step that is not due is gone
+// by the due one; the first step and the first after a shape set from outside update; with no
+// turn allowed held (one piece's default) nothing is. A twist there and back before each step, so
+// every update finds turned tets.
+TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIsTaken) {
+  Block b = make_block(30.0, 0.45, {17, 9, 9});
+  const Eigen::VectorXd twist = gentle_twist(b);
+  CorotationalSettings settings = budget(1);
+  settings.max_rotation_updates_fraction = 1.0;
+  settings.rotation_update_interval_frames = 2;
+  settings.max_update_turns_held = 2;
+  CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
+  int step = 0;
+  // Steps once, the hold asked or not; returns {updated, held}.
+  const auto twisted_step = [&](bool hold) {
+    fem.displace_free_nodes_mm((step % 2 == 0 ? 1.0 : -1.0) * twist);
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> at_start = fem.warped_stiffness();
+    if (hold) fem.hold_next_update();
+    fem.step(nullptr, 1.0 / 30);
+    if (!fem.warped_system_updated()) {
+      EXPECT_EQ(fem.rotations_updated(), 0) << "step " << step;
+      EXPECT_EQ((fem.warped_stiffness() - at_start).norm(), 0.0) << "step " << step;
+    } else {
+      EXPECT_GT(fem.rotations_updated(), 0) << "step " << step;
+    }
+    ++step;
+    return std::pair{fem.warped_system_updated(), fem.update_held()};
+  };
+  using Step = std::pair<bool, bool>;
+  EXPECT_EQ(twisted_step(true), Step(true, false)) << "the first step updates whatever";
+  EXPECT_EQ(twisted_step(true), Step(false, false)) << "not due";
+  EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 1";
+  EXPECT_EQ(twisted_step(true), Step(false, false));
+  EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 2";
+  EXPECT_EQ(twisted_step(true), Step(false, false));
+  EXPECT_EQ(twisted_step(true), Step(true, false)) << "the third due in a row is taken";
+  EXPECT_EQ(twisted_step(true), Step(false, false)) << "asked before a step not due";
+  EXPECT_EQ(twisted_step(false), Step(true, false)) << "the ask was that step's alone";
+  EXPECT_EQ(twisted_step(false), Step(false, false));
+  EXPECT_EQ(twisted_step(true), Step(false, true)) << "held again after an update";
+  fem.set_displacements_mm(twist);
+  EXPECT_EQ(twisted_step(true), Step(true, false)) << "a shape set from outside: updated";
+
+  settings.max_update_turns_held = 0;
+  CorotationalFem never(b.mesh, b.materials, b.fixed, settings);
+  for (int s = 0; s < 6; ++s) {
+    never.hold_next_update();
+    never.step(nullptr, 1.0 / 30);
+    EXPECT_FALSE(never.update_held()) << "step " << s;
+    EXPECT_EQ(never.warped_system_updated(), s % 2 == 0) << "step " << s;
+  }
+  EXPECT_EQ(CorotationalSettings{}.max_update_turns_held, 0) << "one piece never holds";
+  settings.max_update_turns_held = -1;
+  EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, settings), std::invalid_argument);
+}
+
 // Between its updates the engine moves no rotation, however the shape turned, and solves the
 // system it last had; its phase (on its own steps, or on the clock set from outside) picks the
 // steps that update; the first step, and the first after a shape set from outside, update

@@ -702,6 +702,76 @@ TEST(StitchedVolume, CorotationalSubVolumesTakeTheirIntervalsAndUpdateInTurn) {
   EXPECT_THROW(
       StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, never),
       std::invalid_argument);
+
+  EXPECT_EQ(settings_of(alternating, 0).max_update_turns_held, 2) << "the default";
+  StitchingSettings held_once{.sub_volumes = {2, 1, 1}};
+  held_once.corotational_update_turns_held = 1;
+  EXPECT_EQ(settings_of(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
+                                       {}, held_once),
+                        1)
+                .max_update_turns_held,
+            1);
+  EXPECT_EQ(settings_of(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem,
+                                       testing::stick_contact(), held_once),
+                        1)
+                .max_update_turns_held,
+            0)
+      << "the stick contact never holds";
+  held_once.corotational_update_turns_held = -1;
+  EXPECT_THROW(
+      StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, {}, held_once),
+      std::invalid_argument);
+}
+
+// A batch whose share of the frame will not cover a batch's least cost has its corotational
+// sub-volumes hold their due updates (the time goes to the CG), at most
+// corotational_update_turns_held in a row; a frame with time holds none, nor one without a
+// budget. Four sub-volumes touched where they meet, one thread (four batches), every step due
+// (interval 1). The frame's clock is virtual: a question costs 10 µs, a look 1 µs.
+TEST(StitchedVolume, ABatchPastItsShareHoldsItsCorotationalUpdates) {
+  const Region r = make_region({26, 26, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  stitching.corotational_rotation_update_interval_frames = 1;
+  stitching.corotational_update_turns_held = 2;
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, EngineSettings{},
+                   stitching, &jobs);
+  std::int64_t left_us = 0;
+  const auto ask = [&left_us] { return (left_us -= 10) > 0; };
+  const auto time_left = [&left_us] { return left_us -= 1; };
+  const ProbeCollider probe = sphere_probe(12.0, 12.0, 1.5, 4.0);  // where four sub-volumes meet
+  const auto updated = [&](int s) {
+    return dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s)).warped_system_updated();
+  };
+  // Returns how many of the touched sub-volumes updated; the held ones are the rest.
+  const auto frame = [&](std::int64_t time_us) {
+    left_us = time_us;
+    v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+    EXPECT_EQ(v.last_stitch_stats().sub_volumes_touched, 4);
+    int touched_updated = 0;
+    for (int s = 0; s < v.sub_volume_count(); ++s) {
+      if (v.touched(s)) touched_updated += updated(s);
+    }
+    return touched_updated;
+  };
+  EXPECT_EQ(frame(100'000), 4) << "the first steps update whatever";
+  EXPECT_EQ(frame(100'000), 4) << "time for every batch";
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 0);
+  EXPECT_EQ(frame(0), 0) << "the frame's time spent: each batch holds";
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 4);
+  EXPECT_EQ(frame(0), 0);
+  EXPECT_EQ(frame(0), 4) << "the third due update in a row is taken whatever the time";
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 0);
+  EXPECT_EQ(frame(0), 0) << "and the count starts again";
+  v.step(&probe, 1.0 / 60);
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 0) << "no budget: nothing held";
+  for (int s = 0; s < v.sub_volume_count(); ++s) {
+    if (v.stepped(s)) {
+      EXPECT_TRUE(updated(s)) << "sub-volume " << s;
+    }
+  }
+  EXPECT_TRUE(v.displacements_mm().allFinite());
 }
 
 // Neighbours update in turn whichever of them stepped before: the phase is read on the volume's

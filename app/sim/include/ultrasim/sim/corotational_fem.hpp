@@ -107,8 +107,15 @@ class CorotationalFem final : public DeformationEngine {
   // default the engine's own steps, counted from construction): a stitched volume sets its own
   // exchanges', so that its sub-volumes update in turn whichever of them step.
   void set_update_clock(std::int64_t step) { step_count_ = step; }
-  // Whether the last step brought the warped system up to date (rotation_update_interval_frames).
+  // The next step, if its update is due, solves the last warped system instead (its time spent
+  // elsewhere: a stitched frame past its share), unless settings.max_update_turns_held due
+  // updates in a row were held already; the first step and the first after set_displacements
+  // update whatever. Asked of one step only.
+  void hold_next_update() { hold_next_update_ = true; }
+  // Whether the last step brought the warped system up to date (rotation_update_interval_frames),
+  // and whether it held a due update (hold_next_update).
   bool warped_system_updated() const { return warped_system_updated_; }
+  bool update_held() const { return update_held_; }
   // Fewer CG iterations when the budget runs out (one at least); contacts every frame, rotations
   // and the assembly as in step(). A frame inverted over the limit tries its shorter updates
   // while the budget allows, and then goes back to the previous frame's shape (cut_short).
@@ -304,6 +311,9 @@ class CorotationalFem final : public DeformationEngine {
   std::int64_t turn_check_frame_ = 0;         // update_rotations() calls so far
   std::int64_t step_count_ = 0;  // the update interval's clock: steps, or set_update_clock()
   bool warped_system_updated_ = false;
+  bool hold_next_update_ = false;
+  bool update_held_ = false;
+  int updates_held_in_a_row_ = 0;
   bool check_every_tet_ = true;       // the next update checks every tet's turn
   std::vector<double> turn_scratch_;  // the turns past the tolerance (capacity: tets)
   // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out

@@ -138,6 +138,11 @@ struct CorotationalSettings {
   // corotational_rotation_update_interval_frames, face neighbours in alternate phases.
   int rotation_update_interval_frames = 1;
   int rotation_update_phase = 0;  // in [0, rotation_update_interval_frames)
+  // At most this many due updates in a row are held by CorotationalFem::hold_next_update() (a
+  // stitched frame whose time is spent: the CG takes it instead); the next due one updates
+  // whatever the time. 0 (one piece): never held. A stitched volume's sub-volumes take [stitching]
+  // corotational_update_turns_held.
+  int max_update_turns_held = 0;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };
@@ -263,6 +268,16 @@ struct StitchingSettings {
   // instead: twice the RMS error against every rotation exact, still under 1 % of the peak
   // (docs/benchmarks.md, docs/accuracy.md).
   int corotational_rotation_update_interval_frames = 2;
+  // A stitched corotational sub-volume whose batch starts with less of its share of the frame
+  // left than a batch's least cost (the frame's time is spent) solves the last warped system
+  // instead of its due update, at most this many due updates in a row (the next one updates
+  // whatever the time; CorotationalSettings::max_update_turns_held); 0 under the stick contact,
+  // as the intervals. The time goes to the CG, whose one iteration a frame is what held the
+  // forces above the solved run's: under the large case's seam presses the held forces came from
+  // 1.57 to 1.15 times the same run's solved each frame (1.21 at 1 turn held, 1.14 at 3) and the
+  // large soak's frames over 16.7 ms from 263 to 92 of 9,058 (docs/benchmarks.md,
+  // docs/accuracy.md). Nothing is held without a frame budget.
+  int corotational_update_turns_held = 2;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
   // added to every sub-volume, so a disturbance reaches across the region in one frame instead

@@ -31,9 +31,12 @@ bool stitchable(EngineKind method);
 // What a stitched frame did, beyond the engine's stats.
 struct StitchStepStats {
   int sub_volumes_stepped = 0;
-  int sub_volumes_touched = 0;     // within the probe's reach (always stepped)
-  int sub_volumes_asleep = 0;      // after the frame
-  int sub_volumes_deferred = 0;    // due but left for a later frame (selection or budget)
+  int sub_volumes_touched = 0;   // within the probe's reach (always stepped)
+  int sub_volumes_asleep = 0;    // after the frame
+  int sub_volumes_deferred = 0;  // due but left for a later frame (selection or budget)
+  // Corotational sub-volumes' due updates of the warped system held for want of time
+  // ([stitching] corotational_update_turns_held), over the frame's exchanges.
+  int updates_held = 0;
   double max_seam_force_mn = 0.0;  // largest zero-length spring force after the frame
   double max_gap_mm = 0.0;         // largest distance between copies of a shared node
   // The coarse correction's largest nodal move this frame, mm (0: off or nothing to correct),
@@ -158,6 +161,7 @@ class StitchedVolume final : public DeformationEngine {
     double max_seam_gap_mm = 0.0;
     double last_motion_mm = 0.0;
     int frames_waiting = 0;  // since it last stepped
+    int updates_held = 0;    // this frame's (corotational: hold_next_update)
     bool asleep = false;
     bool stepped = false;
     bool touched = false;
@@ -193,7 +197,7 @@ class StitchedVolume final : public DeformationEngine {
   // exchange (it keeps the positions the frame started from and starts the frame's stats).
   // `budget` is each sub-volume's own (step_within; thread-safe: the batch steps in parallel).
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
-                  bool first_part, const StepBudget& budget);
+                  bool first_part, const StepBudget& budget, bool hold_updates);
   // What a seam update does with the loads its copies carry: an accepted frame remembers, a
   // refused or cut-back one with nothing in the probe's reach halves those of its seams, any
   // other update (a refusal under the probe, construction, a reset) keeps them.
