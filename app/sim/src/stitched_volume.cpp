@@ -387,6 +387,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int must_step = order_into_batches(
       touched, shares ? std::min(scheduled, due_batches * batch) : scheduled, batch);
   std::int64_t batch_cost_us = 0;
+  bool cost_measured = false;  // by a batch that held no update
   std::int64_t batch_tail_us = -1;
   // Steps schedule_[first, first + count) with `reserve_us` kept back from its share, and
   // measures the batch's least cost and its tail in every exchange: with one implicit MSDS step
@@ -395,19 +396,27 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     share.reserve_us = reserve_us;
     share.left_at_first_question_us = share.left_at_first_no_us = -1;
     const std::int64_t left_before_us = shares ? time_left_us() : 0;
-    // A batch whose share will not cover a batch's least cost has its corotational sub-volumes
-    // hold their due updates: the frame is late already, and the time the rotations would take
-    // goes to the CG, whose one iteration a frame is what kept the seam presses' forces at 1.6
-    // times the solved run's (1.15 held; [stitching] corotational_update_turns_held).
+    // A batch whose share (left less what is kept back) is no more than a batch's least cost
+    // (a full frame, or a late one) has its corotational sub-volumes hold their due updates: the
+    // time the rotations would take goes to the CG, whose one iteration a frame is what kept the
+    // seam presses' forces at 1.6 times the solved run's (1.2 held; [stitching]
+    // corotational_update_turns_held).
     const bool hold_updates = shares && left_before_us - reserve_us <= batch_cost_us_;
-    step_batch(std::span(schedule_).subspan(first, count), probe, part_dt_s, first_part,
-               shares ? share_budget : sub_budget, hold_updates);
+    const std::span<const int> subs = std::span(schedule_).subspan(first, count);
+    step_batch(subs, probe, part_dt_s, first_part, shares ? share_budget : sub_budget,
+               hold_updates);
     if (!shares) return;
     const std::int64_t left_at_end_us = time_left_us();
-    // Up to the first question, or the whole batch if none asked (no further work wanted).
+    // Up to the first question, or the whole batch if none asked (no further work wanted). Not
+    // from a batch that held an update: its cost without it would plan more batches next frame,
+    // whose shares would not cover the updates taken whatever the time.
     const std::int64_t left_after_us =
         share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : left_at_end_us;
-    batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
+    const bool held = std::ranges::any_of(subs, [this](int s) {
+      return subs_[s].corotational != nullptr && subs_[s].corotational->update_held();
+    });
+    if (!held) batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
+    cost_measured = cost_measured || !held;
     if (share.left_at_first_no_us >= 0) {
       batch_tail_us = std::max(batch_tail_us, share.left_at_first_no_us - left_at_end_us);
     }
@@ -448,7 +457,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
                 false);
     }
   }
-  if (shares) batch_cost_us_ = batch_cost_us;
+  if (shares && cost_measured) batch_cost_us_ = batch_cost_us;
   // Kept from the last frame where a batch was told no (one with time to spare says nothing).
   if (shares && batch_tail_us >= 0) batch_tail_us_ = batch_tail_us;
   const std::int64_t left_after_steps_us = shares ? time_left_us() : 0;
@@ -1111,7 +1120,9 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = false;
     sub.asleep = false;
+    sub.updates_held = 0;
   }
+  stats_.updates_held = 0;
 }
 
 }  // namespace ultrasim::sim

@@ -785,12 +785,12 @@ TEST(CorotationalFem, UpdatingTheWarpedSystemEveryOtherStepFollowsTheEveryStepEn
   }
 }
 
-// A due update held (hold_next_update: a stitched frame whose time is spent) leaves the warped
+// A due update held (hold_next_update: a stitched batch whose share is short) leaves the warped
 // system as it was, as a step between updates does; at most max_update_turns_held due updates in
 // a row are held, the next is taken whatever; a hold asked before a step that is not due is gone
-// by the due one; the first step and the first after a shape set from outside update; with no
-// turn allowed held (one piece's default) nothing is. A twist there and back before each step, so
-// every update finds turned tets.
+// by the due one; the first step and the first after a shape set from outside update, held or
+// not, and the count starts again; with no turn allowed held (one piece's default) nothing is. A
+// twist there and back before each step, so every update finds turned tets.
 TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIsTaken) {
   Block b = make_block(30.0, 0.45, {17, 9, 9});
   const Eigen::VectorXd twist = gentle_twist(b);
@@ -827,8 +827,13 @@ TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIs
   EXPECT_EQ(twisted_step(false), Step(true, false)) << "the ask was that step's alone";
   EXPECT_EQ(twisted_step(false), Step(false, false));
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "held again after an update";
+  EXPECT_EQ(twisted_step(false), Step(false, false));
   fem.set_displacements_mm(twist);
-  EXPECT_EQ(twisted_step(true), Step(true, false)) << "a shape set from outside: updated";
+  EXPECT_EQ(twisted_step(true), Step(true, false)) << "a shape set from outside: due, updated";
+  EXPECT_EQ(twisted_step(true), Step(false, false));
+  EXPECT_EQ(twisted_step(true), Step(false, true)) << "the count starts again: held, 1";
+  EXPECT_EQ(twisted_step(true), Step(false, false));
+  EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 2";
 
   settings.max_update_turns_held = 0;
   CorotationalFem never(b.mesh, b.materials, b.fixed, settings);

@@ -723,11 +723,12 @@ TEST(StitchedVolume, CorotationalSubVolumesTakeTheirIntervalsAndUpdateInTurn) {
       std::invalid_argument);
 }
 
-// A batch whose share of the frame will not cover a batch's least cost has its corotational
+// A batch whose share of the frame is no more than a batch's least cost has its corotational
 // sub-volumes hold their due updates (the time goes to the CG), at most
-// corotational_update_turns_held in a row; a frame with time holds none, nor one without a
-// budget. Four sub-volumes touched where they meet, one thread (four batches), every step due
-// (interval 1). The frame's clock is virtual: a question costs 10 µs, a look 1 µs.
+// corotational_update_turns_held in a row; a frame whose batches' shares are past that holds
+// none, short as it may be, nor does one without a budget. Four sub-volumes touched where they
+// meet, one thread (four batches), every step due (interval 1). The frame's clock is virtual: a
+// question costs 10 µs, a look 1 µs.
 TEST(StitchedVolume, ABatchPastItsShareHoldsItsCorotationalUpdates) {
   const Region r = make_region({26, 26, 5});
   hal::InlineJobSystem jobs;
@@ -755,9 +756,19 @@ TEST(StitchedVolume, ABatchPastItsShareHoldsItsCorotationalUpdates) {
     }
     return touched_updated;
   };
-  EXPECT_EQ(frame(100'000), 4) << "the first steps update whatever";
+  EXPECT_EQ(frame(0), 4) << "the first steps update whatever the time";
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 0);
   EXPECT_EQ(frame(100'000), 4) << "time for every batch";
   EXPECT_EQ(v.last_stitch_stats().updates_held, 0);
+  EXPECT_EQ(frame(400), 4) << "a short frame, each batch's share past its least cost";
+  EXPECT_EQ(v.last_stitch_stats().updates_held, 0);
+  // Shorter still: the first batch's share covers its least cost, the later ones' (each a
+  // quarter of what is left, some µs) do not, though they are more than nothing.
+  const int updated_in_time = frame(40);
+  EXPECT_GE(updated_in_time, 1);
+  EXPECT_LE(updated_in_time, 3);
+  EXPECT_GT(v.last_stitch_stats().updates_held, 0);
+  EXPECT_EQ(frame(100'000), 4) << "time again: every due update taken";
   EXPECT_EQ(frame(0), 0) << "the frame's time spent: each batch holds";
   EXPECT_EQ(v.last_stitch_stats().updates_held, 4);
   EXPECT_EQ(frame(0), 0);

@@ -52,8 +52,9 @@ struct StitchSummary {
   std::int64_t sub_volumes_stepped = 0;   // summed over the frames
   std::int64_t sub_volumes_deferred = 0;  // summed: due but left for later (selection or time)
   std::int64_t frames_deferring = 0;      // frames that left any due sub-volume for later
-  std::int64_t updates_held = 0;          // summed: corotational updates held for want of time
-  double max_gap_mm = 0.0;                // largest gap between copies of a shared node
+  // Summed: corotational updates held for want of time (refused frames' too).
+  std::int64_t updates_held = 0;
+  double max_gap_mm = 0.0;  // largest gap between copies of a shared node
 };
 
 // Everything a headless run measured.

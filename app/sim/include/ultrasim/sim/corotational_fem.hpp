@@ -107,9 +107,9 @@ class CorotationalFem final : public DeformationEngine {
   // default the engine's own steps, counted from construction): a stitched volume sets its own
   // exchanges', so that its sub-volumes update in turn whichever of them step.
   void set_update_clock(std::int64_t step) { step_count_ = step; }
-  // The next step, if its update is due, solves the last warped system instead (its time spent
-  // elsewhere: a stitched frame past its share), unless settings.max_update_turns_held due
-  // updates in a row were held already; the first step and the first after set_displacements
+  // The next step, if its update is due, solves the last warped system instead (its time better
+  // spent on the CG: a stitched batch whose share is short), unless settings.max_update_turns_held
+  // due updates in a row were held already; the first step and the first after set_displacements
   // update whatever. Asked of one step only.
   void hold_next_update() { hold_next_update_ = true; }
   // Whether the last step brought the warped system up to date (rotation_update_interval_frames),

@@ -268,15 +268,16 @@ struct StitchingSettings {
   // instead: twice the RMS error against every rotation exact, still under 1 % of the peak
   // (docs/benchmarks.md, docs/accuracy.md).
   int corotational_rotation_update_interval_frames = 2;
-  // A stitched corotational sub-volume whose batch starts with less of its share of the frame
-  // left than a batch's least cost (the frame's time is spent) solves the last warped system
-  // instead of its due update, at most this many due updates in a row (the next one updates
-  // whatever the time; CorotationalSettings::max_update_turns_held); 0 under the stick contact,
-  // as the intervals. The time goes to the CG, whose one iteration a frame is what held the
-  // forces above the solved run's: under the large case's seam presses the held forces came from
-  // 1.57 to 1.15 times the same run's solved each frame (1.21 at 1 turn held, 1.14 at 3) and the
-  // large soak's frames over 16.7 ms from 263 to 92 of 9,058 (docs/benchmarks.md,
-  // docs/accuracy.md). Nothing is held without a frame budget.
+  // A stitched corotational sub-volume whose batch's share of the frame (the time left less what
+  // is kept back for the batches after it and the work after the steps) is no more than a
+  // batch's least cost (a full frame, or a late one) solves the last warped system instead of its
+  // due update, at most this many due updates in a row (the next one updates whatever the time;
+  // CorotationalSettings::max_update_turns_held); 0 under the stick contact, as the intervals.
+  // The time goes to the CG, whose one iteration a frame is what held the forces above the solved
+  // run's: under the large case's seam presses the held markers came from 1.57 to 1.17 times the
+  // same run's solved each frame (1.21 at 1 turn held, 1.14 at 3), and the large soak's frames
+  // over 16.7 ms from 293-419 to 63-195 of 9,058 (docs/benchmarks.md, docs/accuracy.md).
+  // Nothing is held without a frame budget.
   int corotational_update_turns_held = 2;
   // Once a frame, a coarse correction (coarse_correction.hpp): the smooth displacement over a
   // coarse grid (a node at each overlap band's middle) that lowers the whole region's energy most,
