@@ -388,6 +388,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
       touched, shares ? std::min(scheduled, due_batches * batch) : scheduled, batch);
   std::int64_t batch_cost_us = 0;
   bool cost_measured = false;  // by a batch that held no update
+  int updates_held = 0;        // over the frame's batches and exchanges
   std::int64_t batch_tail_us = -1;
   // Steps schedule_[first, first + count) with `reserve_us` kept back from its share, and
   // measures the batch's least cost and its tail in every exchange: with one implicit MSDS step
@@ -405,6 +406,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     const std::span<const int> subs = std::span(schedule_).subspan(first, count);
     step_batch(subs, probe, part_dt_s, first_part, shares ? share_budget : sub_budget,
                hold_updates);
+    const auto held = static_cast<int>(std::ranges::count_if(subs, [this](int s) {
+      return subs_[s].corotational != nullptr && subs_[s].corotational->update_held();
+    }));
+    updates_held += held;
     if (!shares) return;
     const std::int64_t left_at_end_us = time_left_us();
     // Up to the first question, or the whole batch if none asked (no further work wanted). Not
@@ -412,11 +417,8 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     // whose shares would not cover the updates taken whatever the time.
     const std::int64_t left_after_us =
         share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : left_at_end_us;
-    const bool held = std::ranges::any_of(subs, [this](int s) {
-      return subs_[s].corotational != nullptr && subs_[s].corotational->update_held();
-    });
-    if (!held) batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
-    cost_measured = cost_measured || !held;
+    if (held == 0) batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
+    cost_measured = cost_measured || held == 0;
     if (share.left_at_first_no_us >= 0) {
       batch_tail_us = std::max(batch_tail_us, share.left_at_first_no_us - left_at_end_us);
     }
@@ -536,11 +538,8 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   stats_.sub_volumes_touched = in_reach;
   stats_.sub_volumes_stepped = next;
   stats_.sub_volumes_deferred = 0;
-  stats_.updates_held = 0;
-  for (const auto& sub : subs_) {
-    stats_.sub_volumes_deferred += !sub.stepped && !sub.asleep;
-    if (sub.stepped) stats_.updates_held += sub.updates_held;
-  }
+  for (const auto& sub : subs_) stats_.sub_volumes_deferred += !sub.stepped && !sub.asleep;
+  stats_.updates_held = updates_held;
   return out;
 }
 
@@ -723,13 +722,11 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       const auto before = sub.engine->deformed_positions_mm();
       std::copy(before.begin(), before.end(), sub.previous_positions_mm.begin());
     }
-    if (first_part) sub.updates_held = 0;
     if (sub.corotational != nullptr) {
       sub.corotational->set_update_clock(exchange_count_);
       if (hold_updates) sub.corotational->hold_next_update();
     }
     const EngineStepStats s = sub.engine->step_within(probe, frame_dt_s, budget);
-    if (sub.corotational != nullptr) sub.updates_held += sub.corotational->update_held();
     if (first_part) {
       sub.last_stats = s;
     } else {
@@ -1120,7 +1117,6 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = false;
     sub.asleep = false;
-    sub.updates_held = 0;
   }
   stats_.updates_held = 0;
 }

@@ -139,7 +139,7 @@ struct CorotationalSettings {
   int rotation_update_interval_frames = 1;
   int rotation_update_phase = 0;  // in [0, rotation_update_interval_frames)
   // At most this many due updates in a row are held by CorotationalFem::hold_next_update() (a
-  // stitched frame whose time is spent: the CG takes it instead); the next due one updates
+  // stitched batch whose share is short: the CG takes the time instead); the next due one updates
   // whatever the time. 0 (one piece): never held. A stitched volume's sub-volumes take [stitching]
   // corotational_update_turns_held.
   int max_update_turns_held = 0;

@@ -161,7 +161,6 @@ class StitchedVolume final : public DeformationEngine {
     double max_seam_gap_mm = 0.0;
     double last_motion_mm = 0.0;
     int frames_waiting = 0;  // since it last stepped
-    int updates_held = 0;    // this frame's (corotational: hold_next_update)
     bool asleep = false;
     bool stepped = false;
     bool touched = false;
