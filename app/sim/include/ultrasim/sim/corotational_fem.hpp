@@ -183,6 +183,7 @@ class CorotationalFem final : public DeformationEngine {
   void precompute_tets(std::span<const Material> tet_materials);
   // Throws std::logic_error when tet t's gradient-form stiffness is not tet_stiffness().
   void check_against_linear_fem(int t, const Material& m) const;
+  void mark_constrained_rows();
   void build_pattern_and_scatter_map();
 
   // One frame's pieces (no allocation).
@@ -338,6 +339,8 @@ class CorotationalFem final : public DeformationEngine {
   // The contacts that slide this frame; per node chunk, whether it holds one.
   SlidingNodes sliding_;
   std::vector<std::uint8_t> chunk_slides_;
+  // Per node: a column of its row is held or slides this solve (mark_constrained_rows).
+  std::vector<std::uint8_t> meets_constraint_;
   std::vector<Eigen::Vector3d> deformed_;
   // Per chunk partial sums of a pass (dot products, counts), combined by sum_chunks().
   mutable std::vector<Eigen::Vector4d> chunk_sums_;
