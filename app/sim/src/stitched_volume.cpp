@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <mutex>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -128,6 +129,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
+  holds_updated_seam_.assign(subs_.size(), 0);
   for (const int g : shared_nodes_) update_seam(g, SeamLoads::kKeep);  // fixed midpoints, once
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
@@ -239,6 +241,15 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
       }
     }
     const auto block_count = static_cast<std::size_t>(blocks.prod());
+    sub.block_node_start.assign(block_count + 1, 0);
+    for (const int b : sub.node_block) ++sub.block_node_start[b + 1];
+    std::partial_sum(sub.block_node_start.begin(), sub.block_node_start.end(),
+                     sub.block_node_start.begin());
+    sub.block_nodes.resize(sub.node_block.size());
+    std::vector<int> filled(sub.block_node_start.begin(), sub.block_node_start.end() - 1);
+    for (int l = 0; l < static_cast<int>(sub.node_block.size()); ++l) {
+      sub.block_nodes[filled[sub.node_block[l]]++] = l;
+    }
     sub.block_bounds.resize(block_count);
     sub.block_center_mm.resize(block_count);
     sub.block_half_diagonal_mm.resize(block_count);
@@ -650,12 +661,19 @@ int StitchedVolume::order_into_batches(int touched, int due, int batch) {
 }
 
 bool StitchedVolume::within_reach(const SubVolume& sub, const ProbeCollider& probe) const {
-  // The probe's signed distance changes no faster than the point moves: no node of a block is
-  // within reach when the block's centre is farther than its half diagonal.
+  const double reach_mm = kReachMarginMm + stats_.coarse_move_mm;
   for (std::size_t b = 0; b < sub.block_center_mm.size(); ++b) {
-    if (probe.signed_distance_mm(sub.block_center_mm[b]) <=
-        sub.block_half_diagonal_mm[b] + kReachMarginMm + stats_.coarse_move_mm) {
-      return true;
+    // The probe's signed distance changes no faster than the point moves: no node of a block is
+    // within reach when the block's centre is farther than its half diagonal.
+    if (probe.signed_distance_mm(sub.block_center_mm[b]) >
+        sub.block_half_diagonal_mm[b] + reach_mm) {
+      continue;
+    }
+    // A block that may reach is looked at node by node: a block is several millimetres across,
+    // and on its own it counted sub-volumes whose nearest node was that far from the probe (the
+    // large case's seam presses: one sub-volume in nine of those it counted).
+    for (int i = sub.block_node_start[b]; i < sub.block_node_start[b + 1]; ++i) {
+      if (probe.signed_distance_mm(sub.positions_mm[sub.block_nodes[i]]) <= reach_mm) return true;
     }
   }
   return false;
@@ -1058,9 +1076,18 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
     for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads);
   });
   // Every side of a seam feels its strongest pull: where three copies agree and the fourth does
-  // not, the three must wake too, or the fourth is held deformed by sleepers for ever.
+  // not, the three must wake too, or the fourth is held deformed by sleepers for ever. Only the
+  // sub-volumes with a seam node updated: the others' strongest pull and widest gap are as they
+  // were.
+  std::fill(holds_updated_seam_.begin(), holds_updated_seam_.end(), 0);
+  for (const int g : seams_to_update_) {
+    for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+      holds_updated_seam_[copies_[c].sub] = 1;
+    }
+  }
   hal::parallel_for(jobs_, sub_volume_count(), [&](int s) {
     SubVolume& sub = subs_[s];
+    if (!holds_updated_seam_[s]) return;
     sub.max_seam_force_mn = 0.0;
     sub.max_seam_gap_mm = 0.0;
     for (const int local : sub.shared_local) {

@@ -517,6 +517,28 @@ TEST(StitchedVolume, AReleaseThatTearsASeamWithNothingInReachIsCutBackNotRefused
   }
 }
 
+// A sub-volume is in the probe's reach when one of its nodes is within the margin (0.5 mm) of the
+// probe, not when one of the blocks the reach test first bounds is: a block is several
+// millimetres across (here 6 mm, its centre 3 mm under the skin), and counted alone it made a
+// probe hovering 1.5 mm above the skin touch the sub-volume below (the large case's seam presses
+// counted one sub-volume in nine so).
+TEST(StitchedVolume, TheProbesReachIsItsNearestNodeNotTheBlockAroundIt) {
+  const Region r = make_region({16, 8, 6});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kPcgFem, EngineSettings{},
+                          StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
+  // Over a skin node of the first sub-volume only (x = 6 mm; the second starts at 14 mm).
+  const ProbeCollider hovering = sphere_probe(6.0, 8.0, -1.5);
+  stitched.step(&hovering, 1.0 / 60);
+  EXPECT_FALSE(stitched.touched(0)) << "the nearest node 1.5 mm away, its block within reach";
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_touched, 0);
+  const ProbeCollider near = sphere_probe(6.0, 8.0, -0.3);
+  stitched.step(&near, 1.0 / 60);
+  EXPECT_TRUE(stitched.touched(0)) << "a skin node 0.3 mm from the probe";
+  EXPECT_FALSE(stitched.touched(1));
+  EXPECT_EQ(stitched.last_stitch_stats().sub_volumes_touched, 1);
+}
+
 // A seam torn between a sub-volume that stepped and one the frame's time left standing: the
 // frame is refused, and the one left standing steps in the next frame whatever the time (the
 // large soak's corotational presses: 560 of 1,270 torn seams had a side that had not stepped;

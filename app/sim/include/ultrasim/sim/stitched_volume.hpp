@@ -149,10 +149,12 @@ class StitchedVolume final : public DeformationEngine {
     Eigen::VectorXd cut_back_mm;  // 3 × local nodes: a frame cut back along its update
     // The engine's deformed positions (refreshed whenever it changes them).
     std::span<const Eigen::Vector3d> positions_mm;
-    // Blocks of a few nodes per axis (per local node, its block) and each block's bounding box
-    // at the last step: the probe's reach is tested per block, so a probe near a sub-volume's
+    // Blocks of a few nodes per axis (per local node, its block; per block, its local nodes from
+    // block_node_start[b]) and each block's bounding box at the last step: the probe's reach is
+    // tested per block, then per node of a block it may reach, so a probe near a sub-volume's
     // edge does not count as touching it.
     std::vector<int> node_block;
+    std::vector<int> block_node_start, block_nodes;
     std::vector<Eigen::Vector3d> block_center_mm;
     std::vector<double> block_half_diagonal_mm;
     std::vector<Eigen::AlignedBox3d> block_bounds;
@@ -301,8 +303,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Eigen::Vector3d> seam_pull_before_mn_;
   std::vector<std::uint32_t> node_stamp_;
   std::uint32_t node_stamp_counter_ = 0;
-  std::vector<int> moved_subs_;       // per frame, sized once
-  std::vector<int> seams_to_update_;  // per frame, sized once
+  std::vector<int> moved_subs_;                   // per frame, sized once
+  std::vector<int> seams_to_update_;              // per frame, sized once
+  std::vector<std::uint8_t> holds_updated_seam_;  // per sub-volume, per frame, sized once
   Eigen::VectorXd u_;
   StitchStepStats stats_;
   // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
