@@ -31,6 +31,17 @@ constexpr int kReachBlockNodes = 4;
 
 }  // namespace
 
+// The widest distance between any two of `count` points (position(i)).
+template <typename Position>
+double widest_gap_mm(int count, Position position) {
+  double gap = 0.0;
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d x = position(i);
+    for (int j = i + 1; j < count; ++j) gap = std::max(gap, (position(j) - x).norm());
+  }
+  return gap;
+}
+
 bool stitchable(EngineKind method) {
   return method == EngineKind::kPcgFem || method == EngineKind::kCorotationalFem ||
          method == EngineKind::kMsdsExplicit || method == EngineKind::kMsdsImplicit;
@@ -130,7 +141,13 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   moved_subs_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
   holds_updated_seam_.assign(subs_.size(), 0);
-  for (const int g : shared_nodes_) update_seam(g, SeamLoads::kKeep);  // fixed midpoints, once
+  for (int g = 0; g < mesh_.node_count(); ++g) {
+    most_copies_ = std::max(most_copies_, copies_begin_[g + 1] - copies_begin_[g]);
+  }
+  copies_at_hand_.resize(static_cast<std::size_t>(seam_task_count() * most_copies_));
+  for (const int g : shared_nodes_) {
+    update_seam(g, SeamLoads::kKeep, copies_at_hand_);  // fixed midpoints, once
+  }
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
   }
@@ -963,10 +980,16 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
-void StitchedVolume::update_seam(int g, SeamLoads loads) {
+void StitchedVolume::update_seam(int g, SeamLoads loads, std::span<Eigen::Vector3d> at_hand) {
   const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-  const Eigen::Vector3d sum = copies_sum(g);
   const int count = end - begin;
+  // Each copy's position read once (the sum, the pulls and the widest gap below read it again:
+  // a third of the seams' bookkeeping), summed in the copies' order as copies_sum does.
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int i = 0; i < count; ++i) {
+    at_hand[i] = copy_position(copies_[begin + i]);
+    sum += at_hand[i];
+  }
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
   if (fixed_[g]) {
@@ -996,8 +1019,7 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
   int held = 0;
   for (int c = begin; c < end; ++c) {
     // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
-    const Eigen::Vector3d pull =
-        seam_stiffness_mn_per_mm_[g] * (sum - count * copy_position(copies_[c]));
+    const Eigen::Vector3d pull = seam_stiffness_mn_per_mm_[g] * (sum - count * at_hand[c - begin]);
     seam_load_mn_[c] *= 1.0 - fade;
     if (remember && subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) {
       ++held;
@@ -1022,18 +1044,19 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
     // and sprung (a region that has relaxed carries none, and sleeps).
     node_force = std::max(node_force, (seam_load_mn_[c] + seam_pull_before_mn_[c]).norm());
   }
-  seam_gap_mm_[g] = widest_copy_gap_mm(g);
+  seam_gap_mm_[g] =
+      widest_gap_mm(count, [&](int i) -> const Eigen::Vector3d& { return at_hand[i]; });
   seam_force_mn_[g] = node_force;
 }
 
 double StitchedVolume::widest_copy_gap_mm(int g) const {
-  const int begin = copies_begin_[g], end = copies_begin_[g + 1];
-  double gap = 0.0;
-  for (int c = begin; c < end; ++c) {
-    const Eigen::Vector3d x = copy_position(copies_[c]);
-    for (int d = c + 1; d < end; ++d) gap = std::max(gap, (copy_position(copies_[d]) - x).norm());
-  }
-  return gap;
+  const int begin = copies_begin_[g];
+  return widest_gap_mm(copies_begin_[g + 1] - begin,
+                       [&](int i) { return copy_position(copies_[begin + i]); });
+}
+
+int StitchedVolume::seam_task_count() const {
+  return jobs_ != nullptr ? 2 * jobs_->thread_count() : 1;
 }
 
 void StitchedVolume::finish_frame(SeamLoads loads) {
@@ -1069,11 +1092,14 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
   for_each_moved_seam_node([](const SubVolume&, int) { return true; },
                            [this](int g) { seams_to_update_.push_back(g); });
   const auto seams = static_cast<int>(seams_to_update_.size());
-  const int seam_tasks = jobs_ != nullptr ? 2 * jobs_->thread_count() : 1;
+  const int seam_tasks = seam_task_count();
   hal::parallel_for(jobs_, seam_tasks, [&](int task) {
     const int begin = static_cast<int>(static_cast<long>(seams) * task / seam_tasks);
     const int end = static_cast<int>(static_cast<long>(seams) * (task + 1) / seam_tasks);
-    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads);
+    const auto at_hand = std::span(copies_at_hand_)
+                             .subspan(static_cast<std::size_t>(task * most_copies_),
+                                      static_cast<std::size_t>(most_copies_));
+    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads, at_hand);
   });
   // Every side of a seam feels its strongest pull: where three copies agree and the fourth does
   // not, the three must wake too, or the fourth is held deformed by sleepers for ever. Only the

@@ -243,7 +243,9 @@ class StitchedVolume final : public DeformationEngine {
   void join_held_copies();
   void join_held_copies_of(int grid_node);
   // A shared node's midpoint, gap, loads and pull from its copies.
-  void update_seam(int grid_node, SeamLoads loads);
+  int seam_task_count() const;  // finish_frame's tasks over the seams to update
+  // at_hand: room for the node's copies' positions (most_copies_), the task's own.
+  void update_seam(int grid_node, SeamLoads loads, std::span<Eigen::Vector3d> at_hand);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
   // shares at a local node keep(sub, local) accepts.
   template <typename Keep, typename Visit>
@@ -306,6 +308,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> moved_subs_;                   // per frame, sized once
   std::vector<int> seams_to_update_;              // per frame, sized once
   std::vector<std::uint8_t> holds_updated_seam_;  // per sub-volume, per frame, sized once
+  // Per seam task of finish_frame, room for a node's copies' positions (update_seam).
+  int most_copies_ = 0;
+  std::vector<Eigen::Vector3d> copies_at_hand_;
   Eigen::VectorXd u_;
   StitchStepStats stats_;
   // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
