@@ -203,6 +203,7 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   contact_push_mn_.assign(n, 0.0);
   contacts_.reserve(n);  // every node at most once: step() never grows it
   anchored_nodes_.reserve(n);
+  next_anchored_nodes_.reserve(n);
   prescribed_.assign(n, 0);
   prescribed_u_.assign(n, Eigen::Vector3d::Zero());
   deformed_ = rest_;
@@ -541,19 +542,33 @@ void CorotationalFem::update_inverse_diagonal(int node) {
 
 void CorotationalFem::set_anchor_springs(std::span<const AnchorSpring> anchors) {
   check_anchor_springs(anchors, node_count());
-  for (int node : anchored_nodes_) {
+  // A stitched sub-volume anchors the same nodes as stiffly every step, only their targets move:
+  // such a node keeps its inverse diagonal, which reads its diagonal block (a cache miss a node;
+  // releasing and setting every anchor again took half of a large-case sub-volume's anchors,
+  // 65 of 130 µs). Both lists are in increasing node order.
+  const auto release = [this](int node) {
     anchor_stiffness_.segment<3>(3 * node).setZero();
     anchor_load_mn_.segment<3>(3 * node).setZero();
     update_inverse_diagonal(node);
-  }
-  anchored_nodes_.clear();
+  };
+  std::size_t old = 0;
+  next_anchored_nodes_.clear();
   for (const auto& a : anchors) {
+    while (old < anchored_nodes_.size() && anchored_nodes_[old] < a.node) {
+      release(anchored_nodes_[old++]);
+    }
+    const bool was_anchored = old < anchored_nodes_.size() && anchored_nodes_[old] == a.node;
+    if (was_anchored) ++old;
     // k (target − x) = k (target − rest) − k u: a load and a diagonal stiffness.
-    anchor_stiffness_.segment<3>(3 * a.node).setConstant(a.stiffness_mn_per_mm);
     anchor_load_mn_.segment<3>(3 * a.node) = a.stiffness_mn_per_mm * (a.target_mm - rest_[a.node]);
-    update_inverse_diagonal(a.node);
-    anchored_nodes_.push_back(a.node);  // at most one per node: no allocation once warmed up
+    if (!was_anchored || anchor_stiffness_[3 * a.node] != a.stiffness_mn_per_mm) {
+      anchor_stiffness_.segment<3>(3 * a.node).setConstant(a.stiffness_mn_per_mm);
+      update_inverse_diagonal(a.node);
+    }
+    next_anchored_nodes_.push_back(a.node);  // at most one per node: no allocation once warm
   }
+  while (old < anchored_nodes_.size()) release(anchored_nodes_[old++]);
+  anchored_nodes_.swap(next_anchored_nodes_);
 }
 
 Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::rest_stiffness_mn_per_mm() const {

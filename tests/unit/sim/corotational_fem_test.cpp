@@ -1074,6 +1074,41 @@ TEST(CorotationalFem, TakesAnchorSpringsAndTheCorrectionsInterfaceAsThePcgFemDoe
   EXPECT_NE(corot.deformed_positions_mm()[free_node], Eigen::Vector3d::Zero());
 }
 
+// A stitched sub-volume sets anchors on the same nodes as stiffly every step, their targets
+// alone moving, and set_anchor_springs then keeps those nodes' inverse diagonals: the steps
+// equal, bit for bit, those of an engine whose anchors are all released and set again (the full
+// path) through a sequence that keeps nodes, moves targets, changes a stiffness, drops nodes and
+// adds some, under a press.
+TEST(CorotationalFem, AnchorsKeptOnTheSameNodesStepAsAnchorsSetAfresh) {
+  Block b = make_block();
+  CorotationalFem kept(b.mesh, b.materials, b.fixed, budget(3));
+  CorotationalFem afresh(b.mesh, b.materials, b.fixed, budget(3));
+  std::vector<int> skin;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    if (b.mesh.rest_positions_mm[n].z() == 0.0 && !b.fixed[n]) skin.push_back(n);
+  }
+  ASSERT_GT(skin.size(), 20u);
+  const ProbeCollider probe = sphere_probe(1.0);
+  for (int frame = 0; frame < 6; ++frame) {
+    std::vector<AnchorSpring> anchors;
+    for (std::size_t i = 0; i < skin.size(); ++i) {
+      if (frame == 3 && i % 5 == 0) continue;  // some dropped, back in the frame after
+      if (frame == 4 && i % 7 == 0) continue;
+      const double stiffness = frame == 2 && i % 3 == 0 ? 900.0 : 500.0;
+      const Eigen::Vector3d target =
+          b.mesh.rest_positions_mm[skin[i]] + Eigen::Vector3d(0.01 * frame, 0, 0.02);
+      anchors.push_back({skin[i], target, stiffness});
+    }
+    kept.set_anchor_springs(anchors);
+    afresh.set_anchor_springs({});
+    afresh.set_anchor_springs(anchors);
+    kept.step(&probe, 1.0 / 30);
+    afresh.step(&probe, 1.0 / 30);
+    ASSERT_EQ(kept.displacements_mm(), afresh.displacements_mm()) << "frame " << frame;
+  }
+  EXPECT_GT(max_nodal_norm(kept.displacements_mm()), 0.01);
+}
+
 // Under the published stick contact the face's rounded rim folds a few tets as it drags the skin
 // along. Within max_inverted_fraction (the other engines' tolerance) those frames are accepted
 // whole and report their inverted tets; with no tolerance some of them are cut short, and the

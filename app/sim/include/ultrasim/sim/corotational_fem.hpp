@@ -334,6 +334,7 @@ class CorotationalFem final : public DeformationEngine {
   // Anchor springs (set_anchor_springs): per DOF k, and k (target − rest); the nodes that have one.
   Eigen::VectorXd anchor_stiffness_, anchor_load_mn_;
   std::vector<int> anchored_nodes_;
+  std::vector<int> next_anchored_nodes_;  // set_anchor_springs' new list, then swapped
   std::vector<NodeContact> contacts_;
   std::vector<double> contact_push_mn_;  // per node: last frame's push along the probe's normal
   // The contacts that slide this frame; per node chunk, whether it holds one.
