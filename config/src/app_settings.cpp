@@ -290,10 +290,11 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "as one piece does (and under the stick contact)."));
   t.add(field("corotational_update_turns_held", &S::corotational_update_turns_held,
               IntegerIn<int>{0, 100},
-              "Corotational FEM: a sub-volume whose batch's share of the frame is no more than a "
-              "batch's least cost (a full or late frame) solves the last system instead of its "
-              "due update, at most this many due updates in a row (the CG takes the time); 0: "
-              "never held (and under the stick contact)."));
+              "Corotational FEM: a sub-volume whose batch's share of the frame is no more than "
+              "what a batch with an update took (a full or late frame) solves the last system "
+              "instead of its due update, at most this many due updates in a row (the CG takes "
+              "the time; one out of the probe's reach that must update waits for a frame with the "
+              "time); 0: never held (and under the stick contact)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

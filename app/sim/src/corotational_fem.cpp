@@ -1029,6 +1029,12 @@ void CorotationalFem::update_deformed() {
   }
 }
 
+bool CorotationalFem::update_forced_at(std::int64_t step) const {
+  const bool due =
+      step % settings_.rotation_update_interval_frames == settings_.rotation_update_phase;
+  return check_every_tet_ || (due && updates_held_in_a_row_ >= settings_.max_update_turns_held);
+}
+
 EngineStepStats CorotationalFem::step(const ProbeCollider* probe, double frame_dt_s) {
   return step_within(probe, frame_dt_s, {});
 }
@@ -1045,6 +1051,7 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
   warped_system_updated_ = check_every_tet_ || (due && !update_held_);
   if (update_held_) ++updates_held_in_a_row_;
   if (warped_system_updated_) updates_held_in_a_row_ = 0;
+  warped_system_updates_ += warped_system_updated_;
   if (warped_system_updated_) {
     update_rotations(settings_.rotation_update_tolerance, rotation_update_cap(),
                      settings_.turn_check_interval_frames);

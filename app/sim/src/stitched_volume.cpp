@@ -130,6 +130,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   batched_.reserve(subs_.size());
   placed_.assign(subs_.size(), 0);
   due_.assign(subs_.size(), 0);
+  update_forced_.assign(subs_.size(), 0);
   step_next_.assign(subs_.size(), 0);
   shown_ = mesh_.rest_positions_mm;
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
@@ -358,6 +359,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int parts = exchanges_per_frame_;
   const double part_dt_s = frame_dt_s / parts;
   ++exchange_count_;  // the first exchange's
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    const CorotationalFem* fem = subs_[s].corotational;
+    update_forced_[s] = fem != nullptr && fem->update_forced_at(exchange_count_);
+  }
   // The sub-volumes take the frame's budget as one piece does: the CG methods iterate while the
   // frame has time (warm-started, they catch up over the next frames), the explicit MSDS steps
   // while there is time and retries a rejected frame with smaller steps only while there is. The
@@ -415,8 +420,9 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const int must_step = order_into_batches(
       touched, shares ? std::min(scheduled, due_batches * batch) : scheduled, batch);
   std::int64_t batch_cost_us = 0;
-  bool cost_measured = false;  // by a batch that held no update
-  int updates_held = 0;        // over the frame's batches and exchanges
+  std::int64_t update_batch_cost_us = -1;  // -1: no batch brought a warped system up to date
+  bool cost_measured = false;              // by a batch that held no update
+  int updates_held = 0;                    // over the frame's batches and exchanges
   std::int64_t batch_tail_us = -1;
   // Steps schedule_[first, first + count) with `reserve_us` kept back from its share, and
   // measures the batch's least cost and its tail in every exchange: with one implicit MSDS step
@@ -425,12 +431,15 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     share.reserve_us = reserve_us;
     share.left_at_first_question_us = share.left_at_first_no_us = -1;
     const std::int64_t left_before_us = shares ? time_left_us() : 0;
-    // A batch whose share (left less what is kept back) is no more than a batch's least cost
-    // (a full frame, or a late one) has its corotational sub-volumes hold their due updates: the
-    // time the rotations would take goes to the CG, whose one iteration a frame is what kept the
-    // seam presses' forces at 1.6 times the solved run's (1.2 held; [stitching]
-    // corotational_update_turns_held).
-    const bool hold_updates = shares && left_before_us - reserve_us <= batch_cost_us_;
+    // A batch whose share (left less what is kept back) is no more than what a batch with an
+    // update took (a full frame, or a late one; at least a batch's least cost) has its
+    // corotational sub-volumes hold their due updates: the time the rotations would take goes to
+    // the CG, whose one iteration a frame is what kept the seam presses' forces at 1.6 times the
+    // solved run's (1.2 held; [stitching] corotational_update_turns_held). Held only where the
+    // share did not cover the least cost, a first batch of six touched took its updates in a
+    // share of a third of the frame and ran past it by 0.5-0.7 ms.
+    const bool hold_updates =
+        shares && left_before_us - reserve_us <= std::max(batch_cost_us_, update_batch_cost_us_);
     const std::span<const int> subs = std::span(schedule_).subspan(first, count);
     step_batch(subs, probe, part_dt_s, first_part, shares ? share_budget : sub_budget,
                hold_updates);
@@ -445,6 +454,12 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     // whose shares would not cover the updates taken whatever the time.
     const std::int64_t left_after_us =
         share.left_at_first_question_us >= 0 ? share.left_at_first_question_us : left_at_end_us;
+    const bool updated = std::ranges::any_of(subs, [this](int s) {
+      return subs_[s].corotational != nullptr && subs_[s].corotational->warped_system_updated();
+    });
+    if (updated) {
+      update_batch_cost_us = std::max(update_batch_cost_us, left_before_us - left_after_us);
+    }
     if (held == 0) batch_cost_us = std::max(batch_cost_us, left_before_us - left_after_us);
     cost_measured = cost_measured || held == 0;
     if (share.left_at_first_no_us >= 0) {
@@ -472,7 +487,33 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     return time_left_us() >
            (b < due_batches ? 0 : batch_cost_us_) + after_steps_us_ + later_parts_us;
   };
-  while (next < scheduled && another_batch_fits()) step_next_batch(scheduled);
+  // A corotational sub-volume whose due update can be held no more (update_forced_at) costs a
+  // batch with an update, not a batch at its least: once such a batch no longer fits, the rest
+  // of the frame steps the others and it waits for a frame with the time (under the large
+  // case's seam presses an extra sub-volume's forced update made 43 of the 89 frames whose
+  // simulation took over 5 ms).
+  int end = scheduled;
+  const auto defer_forced_updates = [&] {
+    if (!shares || update_batch_cost_us_ <= 0 ||
+        time_left_us() > update_batch_cost_us_ + after_steps_us_ + later_parts_us) {
+      return;
+    }
+    batched_.clear();  // free after order_into_batches: the deferred, in order
+    int kept = next;
+    for (int i = next; i < end; ++i) {
+      if (update_forced_[schedule_[i]]) {
+        batched_.push_back(schedule_[i]);
+      } else {
+        schedule_[kept++] = schedule_[i];
+      }
+    }
+    std::copy(batched_.begin(), batched_.end(), schedule_.begin() + kept);
+    end = kept;
+  };
+  while (next < end && another_batch_fits()) {
+    defer_forced_updates();
+    if (next < end) step_next_batch(end);
+  }
   // The later exchanges step the same sub-volumes, each batch its even share of the part's time
   // (the part's: what is left over the parts to go).
   const int batches_stepped = (next + batch - 1) / batch;
@@ -488,6 +529,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     }
   }
   if (shares && cost_measured) batch_cost_us_ = batch_cost_us;
+  if (shares && update_batch_cost_us >= 0) update_batch_cost_us_ = update_batch_cost_us;
   // Kept from the last frame where a batch was told no (one with time to spare says nothing).
   if (shares && batch_tail_us >= 0) batch_tail_us_ = batch_tail_us;
   const std::int64_t left_after_steps_us = shares ? time_left_us() : 0;

@@ -800,6 +800,7 @@ TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIs
   settings.max_update_turns_held = 2;
   CorotationalFem fem(b.mesh, b.materials, b.fixed, settings);
   int step = 0;
+  std::int64_t updates = 0;
   // Steps once, the hold asked or not; returns {updated, held}.
   const auto twisted_step = [&](bool hold) {
     fem.displace_free_nodes_mm((step % 2 == 0 ? 1.0 : -1.0) * twist);
@@ -813,15 +814,20 @@ TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIs
       EXPECT_GT(fem.rotations_updated(), 0) << "step " << step;
     }
     ++step;
+    updates += fem.warped_system_updated();
     return std::pair{fem.warped_system_updated(), fem.update_held()};
   };
   using Step = std::pair<bool, bool>;
+  EXPECT_TRUE(fem.update_forced_at(0)) << "the first step";
   EXPECT_EQ(twisted_step(true), Step(true, false)) << "the first step updates whatever";
+  EXPECT_FALSE(fem.update_forced_at(2)) << "due, none held yet";
   EXPECT_EQ(twisted_step(true), Step(false, false)) << "not due";
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 1";
   EXPECT_EQ(twisted_step(true), Step(false, false));
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 2";
+  EXPECT_FALSE(fem.update_forced_at(5)) << "not due";
   EXPECT_EQ(twisted_step(true), Step(false, false));
+  EXPECT_TRUE(fem.update_forced_at(6)) << "due, two held in a row";
   EXPECT_EQ(twisted_step(true), Step(true, false)) << "the third due in a row is taken";
   EXPECT_EQ(twisted_step(true), Step(false, false)) << "asked before a step not due";
   EXPECT_EQ(twisted_step(false), Step(true, false)) << "the ask was that step's alone";
@@ -829,11 +835,14 @@ TEST(CorotationalFem, AHeldUpdateLeavesTheWarpedSystemAndTheNextBeyondTheLimitIs
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "held again after an update";
   EXPECT_EQ(twisted_step(false), Step(false, false));
   fem.set_displacements_mm(twist);
+  EXPECT_TRUE(fem.update_forced_at(step)) << "a shape set from outside";
   EXPECT_EQ(twisted_step(true), Step(true, false)) << "a shape set from outside: due, updated";
   EXPECT_EQ(twisted_step(true), Step(false, false));
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "the count starts again: held, 1";
   EXPECT_EQ(twisted_step(true), Step(false, false));
   EXPECT_EQ(twisted_step(true), Step(false, true)) << "held, 2";
+  EXPECT_EQ(fem.warped_system_updates(), updates);
+  EXPECT_EQ(updates, 4);
 
   settings.max_update_turns_held = 0;
   CorotationalFem never(b.mesh, b.materials, b.fixed, settings);

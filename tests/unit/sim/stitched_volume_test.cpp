@@ -807,6 +807,85 @@ TEST(StitchedVolume, ABatchPastItsShareHoldsItsCorotationalUpdates) {
   EXPECT_TRUE(v.displacements_mm().allFinite());
 }
 
+// A corotational sub-volume whose due update can be held no more costs a batch with an update:
+// once the frame's time left does not cover one, the frame steps the others (that are not due
+// or hold) and that one waits for a frame with the time. A 4 × 4 split, the probe in a corner
+// sub-volume (its three neighbours step beside it), one thread, updates due every other frame
+// (neighbours in turn), two held in a row at most. The frame's clock is virtual: a question costs
+// 10 µs, a look 1 µs, and each warped system brought up to date 500 µs (charged at the next
+// look or question). Before the change the waiting ones stepped, took their update and ran
+// the frame past its end.
+TEST(StitchedVolume, ASubVolumeWhoseUpdateCannotBeHeldWaitsForAFrameWithTheTime) {
+  const Region r = make_region({40, 40, 5});
+  hal::InlineJobSystem jobs;
+  StitchingSettings stitching;
+  stitching.sub_volumes = {4, 4, 1};
+  stitching.corotational_rotation_update_interval_frames = 2;
+  stitching.corotational_update_turns_held = 2;
+  StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kCorotationalFem, EngineSettings{},
+                   stitching, &jobs);
+  const auto fem = [&](int s) -> const CorotationalFem& {
+    return dynamic_cast<const CorotationalFem&>(v.sub_volume_engine(s));
+  };
+  const auto updates = [&] {
+    std::int64_t n = 0;
+    for (int s = 0; s < v.sub_volume_count(); ++s) n += fem(s).warped_system_updates();
+    return n;
+  };
+  std::int64_t left_us = 0;
+  std::int64_t updates_charged = 0;
+  const auto charge = [&](std::int64_t cost_us) {
+    const std::int64_t n = updates();
+    left_us -= cost_us + 500 * (n - updates_charged);
+    updates_charged = n;
+    return left_us;
+  };
+  const auto ask = [&] { return charge(10) > 0; };
+  const auto time_left = [&] { return charge(1); };
+  const ProbeCollider probe = sphere_probe(15.0, 15.0, 1.0, 3.0);
+  std::int64_t exchanges = 0;  // the volume's update clock: one exchange a frame
+  // The frame's sub-volumes awake at its start whose update cannot be held.
+  std::vector<int> forced;
+  const auto frame = [&](std::int64_t time_us) {
+    forced.clear();
+    for (int s = 0; s < v.sub_volume_count(); ++s) {
+      if (!v.asleep(s) && fem(s).update_forced_at(exchanges + 1)) forced.push_back(s);
+    }
+    left_us = time_us;
+    updates_charged = updates();
+    v.step_sharing(&probe, 1.0 / 60, ask, time_left);
+    ++exchanges;
+    EXPECT_EQ(v.last_stitch_stats().sub_volumes_touched, 1);
+  };
+  frame(1'000'000);
+  frame(1'000'000);
+  int frames_with_one_waiting_beside_others = 0;
+  for (int f = 0; f < 9; ++f) {
+    frame(700);  // the touched one, then less than an update's time
+    bool others_stepped = false, one_waited = false;
+    for (int s = 0; s < v.sub_volume_count(); ++s) {
+      if (v.touched(s) || !v.stepped(s)) continue;
+      others_stepped = true;
+      EXPECT_FALSE(fem(s).warped_system_updated()) << "frame " << f << ", sub-volume " << s;
+    }
+    for (const int s : forced) {
+      if (v.touched(s)) continue;
+      EXPECT_FALSE(v.stepped(s)) << "frame " << f << ", sub-volume " << s;
+      one_waited = true;
+    }
+    frames_with_one_waiting_beside_others += others_stepped && one_waited;
+  }
+  EXPECT_GE(frames_with_one_waiting_beside_others, 2);
+  frame(1'000'000);
+  int took_their_update = 0;
+  for (const int s : forced) {
+    if (v.touched(s)) continue;
+    EXPECT_TRUE(v.stepped(s) && fem(s).warped_system_updated()) << "sub-volume " << s;
+    ++took_their_update;
+  }
+  EXPECT_GT(took_their_update, 0);
+}
+
 // Neighbours update in turn whichever of them stepped before: the phase is read on the volume's
 // own clock, not on each sub-volume's steps. Three sub-volumes in a row: the probe in the first
 // for three frames (the second steps beside it, the third rests), then in the third (the second

@@ -112,9 +112,15 @@ class CorotationalFem final : public DeformationEngine {
   // due updates in a row were held already; the first step and the first after set_displacements
   // update whatever. Asked of one step only.
   void hold_next_update() { hold_next_update_ = true; }
+  // Whether a step on the update clock `step` (set_update_clock) would bring the warped system
+  // up to date whatever hold_next_update() asks: its update due with max_update_turns_held held
+  // in a row already, or the first step (since construction or set_displacements).
+  bool update_forced_at(std::int64_t step) const;
   // Whether the last step brought the warped system up to date (rotation_update_interval_frames),
   // and whether it held a due update (hold_next_update).
   bool warped_system_updated() const { return warped_system_updated_; }
+  // How many steps brought the warped system up to date since construction.
+  std::int64_t warped_system_updates() const { return warped_system_updates_; }
   bool update_held() const { return update_held_; }
   // Fewer CG iterations when the budget runs out (one at least); contacts every frame, rotations
   // and the assembly as in step(). A frame inverted over the limit tries its shorter updates
@@ -312,6 +318,7 @@ class CorotationalFem final : public DeformationEngine {
   std::int64_t turn_check_frame_ = 0;         // update_rotations() calls so far
   std::int64_t step_count_ = 0;  // the update interval's clock: steps, or set_update_clock()
   bool warped_system_updated_ = false;
+  std::int64_t warped_system_updates_ = 0;
   bool hold_next_update_ = false;
   bool update_held_ = false;
   int updates_held_in_a_row_ = 0;

@@ -289,6 +289,8 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> batched_;
   std::vector<std::uint8_t> placed_;
   std::vector<std::uint8_t> due_;
+  // Per sub-volume: a corotational one whose update this frame cannot be held (update_forced_at).
+  std::vector<std::uint8_t> update_forced_;
   // Per sub-volume: holds a copy of a seam node the last frame tore without stepping it; it
   // steps in the next frame whatever the time.
   std::vector<std::uint8_t> step_next_;
@@ -317,6 +319,9 @@ class StitchedVolume final : public DeformationEngine {
   std::int64_t after_steps_us_ = 0;
   // The last budgeted frame's costliest batch at its least (up to its first question), µs.
   std::int64_t batch_cost_us_ = 0;
+  // The last budgeted frame's costliest batch up to its first question among those in which a
+  // corotational sub-volume brought its warped system up to date, µs (0 until one did).
+  std::int64_t update_batch_cost_us_ = 0;
   // The longest a batch worked on after its first "no", µs, in the last budgeted frame that said
   // one (step_sharing keeps it back from each batch's share).
   std::int64_t batch_tail_us_ = 0;
