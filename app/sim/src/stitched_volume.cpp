@@ -131,6 +131,8 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   placed_.assign(subs_.size(), 0);
   due_.assign(subs_.size(), 0);
   update_forced_.assign(subs_.size(), 0);
+  tears_seam_.assign(subs_.size(), 0);
+  seam_move_mm_.assign(subs_.size(), 0.0);
   step_next_.assign(subs_.size(), 0);
   shown_ = mesh_.rest_positions_mm;
   u_ = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh_.node_count()));
@@ -140,6 +142,8 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   seam_pull_before_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
+  stepped_subs_.reserve(subs_.size());
+  subs_to_look_at_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
   holds_updated_seam_.assign(subs_.size(), 0);
   for (int g = 0; g < mesh_.node_count(); ++g) {
@@ -866,24 +870,61 @@ bool StitchedVolume::tears_a_seam(bool mark_standing) {
   // still probe's warm-started drift (refusing those would hold the probe at random); one
   // within it may not cross it.
   constexpr double kWideningToleranceMm = 1e-3;
-  bool torn = false;
+  const auto torn_at = [&](int g) {
+    const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
+                             ? seam_gap_mm_[g] + kWideningToleranceMm
+                             : settings_.refuse_gap_mm;
+    return widest_copy_gap_mm(g) > limit;
+  };
   // The stepped sub-volumes' seams: a refusal reverts only those, and the copies of a node move
-  // alike under the corrections.
-  for_each_moved_seam_node([](const SubVolume& sub, int) { return sub.stepped; },
-                           [&](int g) {
-                             if (torn && !mark_standing) return;
-                             const double limit = seam_gap_mm_[g] > settings_.refuse_gap_mm
-                                                      ? seam_gap_mm_[g] + kWideningToleranceMm
-                                                      : settings_.refuse_gap_mm;
-                             if (!(widest_copy_gap_mm(g) > limit)) return;
-                             torn = true;
-                             if (!mark_standing) return;
-                             // Its copies in sub-volumes that did not step were left where
-                             // they were while the others moved away: they step next frame.
-                             for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-                               if (!subs_[copies_[c].sub].stepped) step_next_[copies_[c].sub] = 1;
-                             }
-                           });
+  // alike under the corrections. A gap widens by no more than its copies moved, so a sub-volume
+  // whose widest seam (as of the last frame), its own seam copies' largest move this frame and
+  // the largest of any stepped sub-volume's stay within the bound tears nothing, and its seams
+  // are not looked at node by node (0.12-0.14 ms of the large case's frame on both threads, for
+  // about 10,000 seam nodes; the bound rarely comes near the 3 mm).
+  stepped_subs_.clear();
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    if (subs_[s].stepped) stepped_subs_.push_back(s);
+  }
+  hal::parallel_for(jobs_, static_cast<int>(stepped_subs_.size()), [&](int i) {
+    const SubVolume& sub = subs_[stepped_subs_[i]];
+    double most_squared = 0.0;
+    for (const int local : sub.shared_local) {
+      most_squared = std::max(
+          most_squared, (sub.positions_mm[local] - sub.previous_positions_mm[local]).squaredNorm());
+    }
+    seam_move_mm_[stepped_subs_[i]] = std::sqrt(most_squared);
+  });
+  double most_move_mm = 0.0;
+  for (const int s : stepped_subs_) most_move_mm = std::max(most_move_mm, seam_move_mm_[s]);
+  subs_to_look_at_.clear();
+  for (const int s : stepped_subs_) {
+    const double widest_mm = subs_[s].max_seam_gap_mm;
+    if (widest_mm > settings_.refuse_gap_mm ||
+        widest_mm + seam_move_mm_[s] + most_move_mm >= settings_.refuse_gap_mm) {
+      subs_to_look_at_.push_back(s);
+    }
+  }
+  hal::parallel_for(jobs_, static_cast<int>(subs_to_look_at_.size()), [&](int i) {
+    const SubVolume& sub = subs_[subs_to_look_at_[i]];
+    tears_seam_[subs_to_look_at_[i]] = std::ranges::any_of(
+        sub.shared_local, [&](int local) { return torn_at(sub.global_node[local]); });
+  });
+  bool torn = false;
+  for (const int s : subs_to_look_at_) {
+    if (!tears_seam_[s]) continue;
+    torn = true;
+    if (!mark_standing) break;
+    // The torn nodes' copies in sub-volumes that did not step were left where they were while
+    // the others moved away: they step next frame.
+    for (const int local : subs_[s].shared_local) {
+      const int g = subs_[s].global_node[local];
+      if (!torn_at(g)) continue;
+      for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
+        if (!subs_[copies_[c].sub].stepped) step_next_[copies_[c].sub] = 1;
+      }
+    }
+  }
   return torn;
 }
 

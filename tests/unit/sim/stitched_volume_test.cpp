@@ -1441,7 +1441,9 @@ TEST(StitchedVolume, AFrameASubVolumeTookInSmallerStepsStandsAndSaysWhy) {
 
 // A frame that opens a seam wider than refuse_gap_mm is refused as a whole (a torn seam never
 // reaches the screen): a press across the seam, deepening, first with no bound to learn how wide
-// it opens the seam, then with the bound at half that.
+// it opens the seam, then with the bound at half that. The accepted frames' widest gap (every
+// seam node's, measured after the frame) checks the tear test's shortcut (a sub-volume whose
+// seams cannot have crossed the bound by their copies' moves is not looked at node by node).
 TEST(StitchedVolume, AFrameThatOpensASeamPastTheBoundIsRefused) {
   const Region r = make_region({22, 10, 8});
   hal::InlineJobSystem jobs;

@@ -310,6 +310,11 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> moved_subs_;                   // per frame, sized once
   std::vector<int> seams_to_update_;              // per frame, sized once
   std::vector<std::uint8_t> holds_updated_seam_;  // per sub-volume, per frame, sized once
+  // tears_a_seam's, sized once: the stepped sub-volumes, those whose seams it looks at node by
+  // node; per sub-volume, its seam copies' largest move this frame and whether it tears a seam.
+  std::vector<int> stepped_subs_, subs_to_look_at_;
+  std::vector<double> seam_move_mm_;
+  std::vector<std::uint8_t> tears_seam_;
   // Per seam task of finish_frame, room for a node's copies' positions (update_seam).
   int most_copies_ = 0;
   std::vector<Eigen::Vector3d> copies_at_hand_;
