@@ -294,7 +294,7 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "what a batch with an update took (a full or late frame) solves the last system "
               "instead of its due update, at most this many due updates in a row (the CG takes "
               "the time; one out of the probe's reach that must update waits for a frame with the "
-              "time); 0: never held (and under the stick contact)."));
+              "time, 120 times at most); 0: never held (and under the stick contact)."));
   t.add(field("coarse_correction", &S::coarse_correction, Boolean{},
               "Once a frame, the smooth coarse-grid displacement that brings the whole region "
               "closest to balance, added to every sub-volume: faster relaxation, but presses end "

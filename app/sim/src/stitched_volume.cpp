@@ -26,6 +26,13 @@ constexpr double kJoinHeldCopiesMm = 0.1;
 // A seam's remembered loads fade by this fraction a frame where its copies did not all step
 // ([stitching] seam_load_rate).
 constexpr double kSeamLoadFadePerFrame = 0.1;
+// A corotational sub-volume out of the probe's reach whose update cannot be held waits for a
+// frame with the time for it at most this many times between two updates (with an update due
+// every other frame, four seconds; between its due frames it may step and solve the last warped
+// system). At 60 the seam presses' neighbours took their update whatever the time within a
+// press and hold of 2.2 s, and the simulation's p99 rose from 5.2-5.3 to 5.3-6.2 ms (at 120:
+// 5.3-5.5 ms).
+constexpr int kMostTimesAnUpdateWaits = 120;
 // Nodes per axis of the blocks the reach test bounds (4³ = 64 nodes, a few mm across).
 constexpr int kReachBlockNodes = 4;
 
@@ -495,7 +502,8 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   // batch with an update, not a batch at its least: once such a batch no longer fits, the rest
   // of the frame steps the others and it waits for a frame with the time (under the large
   // case's seam presses an extra sub-volume's forced update made 43 of the 89 frames whose
-  // simulation took over 5 ms).
+  // simulation took over 5 ms), kMostTimesAnUpdateWaits times at most between two updates (a
+  // press that never leaves the time would otherwise keep its rotations as they were for good).
   int end = scheduled;
   const auto defer_forced_updates = [&] {
     if (!shares || update_batch_cost_us_ <= 0 ||
@@ -505,7 +513,9 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     batched_.clear();  // free after order_into_batches: the deferred, in order
     int kept = next;
     for (int i = next; i < end; ++i) {
-      if (update_forced_[schedule_[i]]) {
+      SubVolume& sub = subs_[schedule_[i]];
+      if (update_forced_[schedule_[i]] && sub.times_update_waited < kMostTimesAnUpdateWaits) {
+        ++sub.times_update_waited;  // once a frame: past `end` it is not looked at again
         batched_.push_back(schedule_[i]);
       } else {
         schedule_[kept++] = schedule_[i];
@@ -1216,6 +1226,9 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
   stats_.sub_volumes_asleep = 0;
   for (auto& sub : subs_) {
     sub.frames_waiting = sub.stepped ? 0 : sub.frames_waiting + 1;
+    if (sub.stepped && sub.corotational != nullptr && sub.corotational->warped_system_updated()) {
+      sub.times_update_waited = 0;
+    }
     if (settings_.selective && !sub.touched && sub.max_seam_force_mn < settings_.sleep_force_mn &&
         sub.last_motion_mm < settings_.sleep_motion_mm) {
       sub.asleep = true;

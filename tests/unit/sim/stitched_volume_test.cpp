@@ -814,7 +814,7 @@ TEST(StitchedVolume, ABatchPastItsShareHoldsItsCorotationalUpdates) {
 // (neighbours in turn), two held in a row at most. The frame's clock is virtual: a question costs
 // 10 µs, a look 1 µs, and each warped system brought up to date 500 µs (charged at the next
 // look or question). Before the change the waiting ones stepped, took their update and ran
-// the frame past its end.
+// the frame past its end. It waits 120 times at most, then updates whatever the time.
 TEST(StitchedVolume, ASubVolumeWhoseUpdateCannotBeHeldWaitsForAFrameWithTheTime) {
   const Region r = make_region({40, 40, 5});
   hal::InlineJobSystem jobs;
@@ -884,6 +884,24 @@ TEST(StitchedVolume, ASubVolumeWhoseUpdateCannotBeHeldWaitsForAFrameWithTheTime)
     ++took_their_update;
   }
   EXPECT_GT(took_their_update, 0);
+
+  // A press that never leaves the time: one that must update waits 120 times at most (between its
+  // due frames it steps on the last warped system), then updates whatever the time; without the
+  // bound the neighbours took no update in these frames.
+  std::vector<std::int64_t> updates_before(v.sub_volume_count());
+  for (int s = 0; s < v.sub_volume_count(); ++s) updates_before[s] = fem(s).warped_system_updates();
+  std::vector<int> steps(v.sub_volume_count(), 0);
+  for (int f = 0; f < 600; ++f) {
+    frame(700);
+    for (int s = 0; s < v.sub_volume_count(); ++s) steps[s] += v.stepped(s);
+  }
+  int neighbours = 0;
+  for (int s = 0; s < v.sub_volume_count(); ++s) {
+    if (v.touched(s) || steps[s] == 0) continue;
+    ++neighbours;
+    EXPECT_GE(fem(s).warped_system_updates() - updates_before[s], 1) << "sub-volume " << s;
+  }
+  EXPECT_GE(neighbours, 3);
 }
 
 // Neighbours update in turn whichever of them stepped before: the phase is read on the volume's

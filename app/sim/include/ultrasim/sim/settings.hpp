@@ -273,8 +273,8 @@ struct StitchingSettings {
   // batch with an update took (a full frame, or a late one) solves the last warped system instead
   // of its due update, at most this many due updates in a row (the next one updates whatever the
   // time; CorotationalSettings::max_update_turns_held; one out of the probe's reach whose next
-  // update cannot be held waits for a frame with the time for it); 0 under the stick contact, as
-  // the intervals.
+  // update cannot be held waits for a frame with the time for it, 120 times at most); 0 under the
+  // stick contact, as the intervals.
   // The time goes to the CG, whose one iteration a frame is what held the forces above the solved
   // run's: under the large case's seam presses the held markers came from 1.57 to 1.17 times the
   // same run's solved each frame (1.21 at 1 turn held, 1.14 at 3), and the large soak's frames

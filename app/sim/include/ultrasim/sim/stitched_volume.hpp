@@ -163,6 +163,8 @@ class StitchedVolume final : public DeformationEngine {
     double max_seam_gap_mm = 0.0;
     double last_motion_mm = 0.0;
     int frames_waiting = 0;  // since it last stepped
+    // Times it waited for the time its update needs since its last update (step_sharing).
+    int times_update_waited = 0;
     bool asleep = false;
     bool stepped = false;
     bool touched = false;
