@@ -149,7 +149,6 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   seam_pull_before_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
-  stepped_subs_.reserve(subs_.size());
   subs_to_look_at_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
   holds_updated_seam_.assign(subs_.size(), 0);
@@ -868,14 +867,14 @@ bool StitchedVolume::refuses_frame(std::span<const int> stepped, DivergenceCause
       return true;
     }
   }
-  if (tears_a_seam(true)) {
+  if (tears_a_seam(stepped, true)) {
     cause = DivergenceCause::kSeamTorn;
     return true;
   }
   return false;
 }
 
-bool StitchedVolume::tears_a_seam(bool mark_standing) {
+bool StitchedVolume::tears_a_seam(std::span<const int> stepped, bool mark_standing) {
   // A seam already past the bound may close or hold, not widen by more than rounding and a
   // still probe's warm-started drift (refusing those would hold the probe at random); one
   // within it may not cross it.
@@ -893,24 +892,20 @@ bool StitchedVolume::tears_a_seam(bool mark_standing) {
   // of any stepped sub-volume's and twice the coarse correction's largest move stay within the
   // bound tears nothing, and its seams are not looked at node by node (the seam presses: 0.13 ms
   // p50 of a frame node by node on one thread, 0.04 ms so; the sum rarely comes near the 3 mm).
-  stepped_subs_.clear();
-  for (int s = 0; s < sub_volume_count(); ++s) {
-    if (subs_[s].stepped) stepped_subs_.push_back(s);
-  }
-  hal::parallel_for(jobs_, static_cast<int>(stepped_subs_.size()), [&](int i) {
-    const SubVolume& sub = subs_[stepped_subs_[i]];
+  hal::parallel_for(jobs_, static_cast<int>(stepped.size()), [&](int i) {
+    const SubVolume& sub = subs_[stepped[i]];
     double most_squared = 0.0;
     for (const int local : sub.shared_local) {
       most_squared = std::max(
           most_squared, (sub.positions_mm[local] - sub.previous_positions_mm[local]).squaredNorm());
     }
-    seam_move_mm_[stepped_subs_[i]] = std::sqrt(most_squared);
+    seam_move_mm_[stepped[i]] = std::sqrt(most_squared);
   });
   double most_move_mm = 0.0;
-  for (const int s : stepped_subs_) most_move_mm = std::max(most_move_mm, seam_move_mm_[s]);
+  for (const int s : stepped) most_move_mm = std::max(most_move_mm, seam_move_mm_[s]);
   const double margin_mm = most_move_mm + 2.0 * stats_.coarse_move_mm + kWideningToleranceMm;
   subs_to_look_at_.clear();
-  for (const int s : stepped_subs_) {
+  for (const int s : stepped) {
     const double widest_mm = subs_[s].max_seam_gap_mm;
     if (widest_mm > settings_.refuse_gap_mm ||
         widest_mm + seam_move_mm_[s] + margin_mm >= settings_.refuse_gap_mm) {
@@ -974,7 +969,7 @@ bool StitchedVolume::cut_back_frame(std::span<const int> stepped) {
       sub.engine->set_displacements_mm(sub.cut_back_mm);
       sub.positions_mm = sub.engine->deformed_positions_mm();
     });
-    if (!tears_a_seam(false)) return true;
+    if (!tears_a_seam(stepped, false)) return true;
   }
   return false;  // the caller reverts the frame
 }

@@ -228,10 +228,10 @@ class StitchedVolume final : public DeformationEngine {
   // A frame is refused too when it opened a seam wider than [stitching] refuse_gap_mm (and wider
   // than it was): a torn seam. `cause` says which.
   bool refuses_frame(std::span<const int> stepped, DivergenceCause& cause);
-  // Whether a seam of a stepped sub-volume is now wider than refuse_gap_mm and than last frame;
+  // Whether a seam of a `stepped` sub-volume is now wider than refuse_gap_mm and than last frame;
   // with mark_standing, marks in step_next_ the sub-volumes that did not step holding a copy of
   // a torn seam's node.
-  bool tears_a_seam(bool mark_standing);
+  bool tears_a_seam(std::span<const int> stepped, bool mark_standing);
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
   // The displacements the frame found the sub-volume at, into its revert_mm.
@@ -312,9 +312,9 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> moved_subs_;                   // per frame, sized once
   std::vector<int> seams_to_update_;              // per frame, sized once
   std::vector<std::uint8_t> holds_updated_seam_;  // per sub-volume, per frame, sized once
-  // tears_a_seam's, sized once: the stepped sub-volumes, those whose seams it looks at node by
-  // node; per sub-volume, its seam copies' largest move this frame and whether it tears a seam.
-  std::vector<int> stepped_subs_, subs_to_look_at_;
+  // tears_a_seam's, sized once: the stepped sub-volumes whose seams it looks at node by node;
+  // per sub-volume, its seam copies' largest move this frame and whether it tears a seam.
+  std::vector<int> subs_to_look_at_;
   std::vector<double> seam_move_mm_;
   std::vector<std::uint8_t> tears_seam_;
   // Per seam task of finish_frame, room for a node's copies' positions (update_seam).
