@@ -152,13 +152,11 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   subs_to_look_at_.reserve(subs_.size());
   seams_to_update_.reserve(shared_nodes_.size());
   holds_updated_seam_.assign(subs_.size(), 0);
-  for (int g = 0; g < mesh_.node_count(); ++g) {
-    most_copies_ = std::max(most_copies_, copies_begin_[g + 1] - copies_begin_[g]);
+  copy_positions_mm_.resize(copies_.size());
+  for (std::size_t c = 0; c < copies_.size(); ++c) {
+    copy_positions_mm_[c] = copy_position(copies_[c]);
   }
-  copies_at_hand_.resize(static_cast<std::size_t>(seam_task_count() * most_copies_));
-  for (const int g : shared_nodes_) {
-    update_seam(g, SeamLoads::kKeep, copies_at_hand_);  // fixed midpoints, once
-  }
+  for (const int g : shared_nodes_) update_seam(g, SeamLoads::kKeep);  // fixed midpoints, once
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = true;  // the first frame's bounds come from the rest shape
   }
@@ -287,16 +285,24 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
 
 void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
   const int n = mesh_.node_count();
-  copies_begin_.assign(static_cast<std::size_t>(n) + 1, 0);
+  // Only the shared nodes' copies are listed: side by side, the seams' bookkeeping reads them
+  // (and the loads and pulls kept per copy) in fewer cache lines than among the many nodes of
+  // one sub-volume alone.
+  std::vector<int> copy_count(static_cast<std::size_t>(n), 0);
   for (const auto& sub : subs_) {
-    for (int g : sub.global_node) ++copies_begin_[g + 1];
+    for (int g : sub.global_node) ++copy_count[g];
   }
-  for (int g = 0; g < n; ++g) copies_begin_[g + 1] += copies_begin_[g];
+  copies_begin_.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (int g = 0; g < n; ++g) {
+    copies_begin_[g + 1] = copies_begin_[g] + (copy_count[g] > 1 ? copy_count[g] : 0);
+  }
   copies_.resize(copies_begin_[n]);
   std::vector<int> fill(copies_begin_.begin(), copies_begin_.end() - 1);
   for (int s = 0; s < sub_volume_count(); ++s) {
     const auto& global = subs_[s].global_node;
-    for (int l = 0; l < static_cast<int>(global.size()); ++l) copies_[fill[global[l]]++] = {s, l};
+    for (int l = 0; l < static_cast<int>(global.size()); ++l) {
+      if (copy_count[global[l]] > 1) copies_[fill[global[l]]++] = {s, l};
+    }
   }
   // The seam's stiffness follows the stiffest tissue at the node, so a stiff inclusion's seam
   // gapes no more than soft tissue's.
@@ -321,10 +327,15 @@ void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
       }
     }
   }
-  for (auto& sub : subs_) {
+  for (int s = 0; s < sub_volume_count(); ++s) {
+    SubVolume& sub = subs_[s];
     for (int l = 0; l < static_cast<int>(sub.global_node.size()); ++l) {
       const int g = sub.global_node[l];
-      if (seam_stiffness_mn_per_mm_[g] > 0.0 && !fixed_[g]) sub.shared_local.push_back(l);
+      if (seam_stiffness_mn_per_mm_[g] <= 0.0 || fixed_[g]) continue;
+      sub.shared_local.push_back(l);
+      int c = copies_begin_[g];
+      while (copies_[c].sub != s) ++c;
+      sub.shared_copy.push_back(c);
     }
     sub.anchors.resize(sub.shared_local.size());
   }
@@ -1070,16 +1081,15 @@ void StitchedVolume::correct_coarsely() {
   stats_.sub_volumes_corrected = static_cast<int>(corrected_.size());
 }
 
-void StitchedVolume::update_seam(int g, SeamLoads loads, std::span<Eigen::Vector3d> at_hand) {
+void StitchedVolume::update_seam(int g, SeamLoads loads) {
   const int begin = copies_begin_[g], end = copies_begin_[g + 1];
   const int count = end - begin;
-  // Each copy's position read once (the sum, the pulls and the widest gap below read it again:
-  // a third of the seams' bookkeeping), summed in the copies' order as copies_sum does.
+  const auto at_hand =
+      std::span(copy_positions_mm_)
+          .subspan(static_cast<std::size_t>(begin), static_cast<std::size_t>(count));
+  // Summed in the copies' order, as copies_sum does.
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (int i = 0; i < count; ++i) {
-    at_hand[i] = copy_position(copies_[begin + i]);
-    sum += at_hand[i];
-  }
+  for (const Eigen::Vector3d& x : at_hand) sum += x;
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
   if (fixed_[g]) {
@@ -1167,7 +1177,7 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
       motion_squared =
           std::max(motion_squared, (x[l] - sub.previous_positions_mm[l]).squaredNorm());
       const int g = sub.global_node[l];
-      if (copies_begin_[g + 1] - copies_begin_[g] == 1) {
+      if (copies_begin_[g + 1] == copies_begin_[g]) {
         shown_[g] = x[l];  // a node of this sub-volume alone
         u_.segment<3>(3 * g) = x[l] - mesh_.rest_positions_mm[g];
       }
@@ -1177,6 +1187,9 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
       sub.block_half_diagonal_mm[b] = 0.5 * sub.block_bounds[b].diagonal().norm();
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
+    for (std::size_t k = 0; k < sub.shared_local.size(); ++k) {
+      copy_positions_mm_[sub.shared_copy[k]] = x[sub.shared_local[k]];
+    }
   });
   seams_to_update_.clear();
   for_each_moved_seam_node([](const SubVolume&, int) { return true; },
@@ -1186,10 +1199,7 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
   hal::parallel_for(jobs_, seam_tasks, [&](int task) {
     const int begin = static_cast<int>(static_cast<long>(seams) * task / seam_tasks);
     const int end = static_cast<int>(static_cast<long>(seams) * (task + 1) / seam_tasks);
-    const auto at_hand = std::span(copies_at_hand_)
-                             .subspan(static_cast<std::size_t>(task * most_copies_),
-                                      static_cast<std::size_t>(most_copies_));
-    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads, at_hand);
+    for (int i = begin; i < end; ++i) update_seam(seams_to_update_[i], loads);
   });
   // Every side of a seam feels its strongest pull: where three copies agree and the fourth does
   // not, the three must wake too, or the fourth is held deformed by sleepers for ever. Only the

@@ -141,8 +141,9 @@ class StitchedVolume final : public DeformationEngine {
     std::unique_ptr<DeformationEngine> engine;
     CorotationalFem* corotational = nullptr;  // the engine, if it is one (its update clock)
     std::vector<int> global_node;             // per local node
-    // Shared local nodes (in node order) and, per entry, the grid node it copies.
+    // Shared local nodes (in node order) and, per entry, its copy's index in copies_.
     std::vector<int> shared_local;
+    std::vector<int> shared_copy;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
     Eigen::VectorXd revert_mm;    // 3 × local nodes: a refused frame's displacements, sized once
@@ -244,10 +245,9 @@ class StitchedVolume final : public DeformationEngine {
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
   void join_held_copies_of(int grid_node);
-  // A shared node's midpoint, gap, loads and pull from its copies.
+  // A shared node's midpoint, gap, loads and pull from its copies (copy_positions_mm_).
   int seam_task_count() const;  // finish_frame's tasks over the seams to update
-  // at_hand: room for the node's copies' positions (most_copies_), the task's own.
-  void update_seam(int grid_node, SeamLoads loads, std::span<Eigen::Vector3d> at_hand);
+  void update_seam(int grid_node, SeamLoads loads);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
   // shares at a local node keep(sub, local) accepts.
   template <typename Keep, typename Visit>
@@ -268,7 +268,8 @@ class StitchedVolume final : public DeformationEngine {
   std::mutex budget_mutex_;
   hal::JobSystem* jobs_ = nullptr;
   std::vector<SubVolume> subs_;
-  // Per grid node, its copies (CSR), and the seam spring's stiffness there (0 if not shared).
+  // Per grid node, its copies (CSR; none listed for a node of one sub-volume alone), and the
+  // seam spring's stiffness there (0 if not shared).
   std::vector<int> copies_begin_;
   std::vector<Copy> copies_;
   std::vector<double> seam_stiffness_mn_per_mm_;
@@ -317,9 +318,11 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> subs_to_look_at_;
   std::vector<double> seam_move_mm_;
   std::vector<std::uint8_t> tears_seam_;
-  // Per seam task of finish_frame, room for a node's copies' positions (update_seam).
-  int most_copies_ = 0;
-  std::vector<Eigen::Vector3d> copies_at_hand_;
+  // Per copy (as copies_), its position as of the last finish_frame that found its sub-volume
+  // moved: a seam node's copies side by side for update_seam (read from each sub-volume's own
+  // positions, the copies of a node lie apart and each read missed the cache: a third of the
+  // seams' update).
+  std::vector<Eigen::Vector3d> copy_positions_mm_;
   Eigen::VectorXd u_;
   StitchStepStats stats_;
   // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
