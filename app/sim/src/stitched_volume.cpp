@@ -154,7 +154,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   holds_updated_seam_.assign(subs_.size(), 0);
   copy_positions_mm_.resize(copies_.size());
   for (std::size_t c = 0; c < copies_.size(); ++c) {
-    copy_positions_mm_[c] = copy_position(copies_[c]);
+    copy_positions_mm_[c] = subs_[copies_[c].sub].positions_mm[copies_[c].local];
   }
   for (const int g : shared_nodes_) update_seam(g, SeamLoads::kKeep);  // fixed midpoints, once
   for (auto& sub : subs_) {
@@ -341,13 +341,16 @@ void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
   }
 }
 
-Eigen::Vector3d StitchedVolume::copy_position(const Copy& c) const {
-  return subs_[c.sub].positions_mm[c.local];
+void StitchedVolume::take_positions(SubVolume& sub) {
+  sub.positions_mm = sub.engine->deformed_positions_mm();
+  for (std::size_t k = 0; k < sub.shared_local.size(); ++k) {
+    copy_positions_mm_[sub.shared_copy[k]] = sub.positions_mm[sub.shared_local[k]];
+  }
 }
 
 Eigen::Vector3d StitchedVolume::copies_sum(int g) const {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) sum += copy_position(copies_[c]);
+  for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) sum += copy_positions_mm_[c];
   return sum;
 }
 
@@ -789,7 +792,7 @@ void StitchedVolume::refresh_anchors(int s, const ProbeCollider* probe) {
         own = c;
         continue;
       }
-      others += copy_position(copies_[c]);
+      others += copy_positions_mm_[c];
       ++count;
     }
     // count springs of stiffness k to the other copies pull as one of k × count to their mean.
@@ -842,7 +845,7 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
       f.diverged = f.diverged || s.diverged;
       f.recovery = worse_recovery(f.recovery, s.recovery);
     }
-    sub.positions_mm = sub.engine->deformed_positions_mm();
+    take_positions(sub);
     sub.stepped = sub.moved = true;
   };
   hal::parallel_for(jobs_, static_cast<int>(subs.size()), step_one);
@@ -866,7 +869,7 @@ void StitchedVolume::correct_finely(const StepBudget& may_continue) {
   stats_.fine_iterations = result.iterations;
   stats_.fine_move_mm = result.largest_move_mm;
   for (auto& sub : subs_) {
-    if (sub.stepped) sub.positions_mm = sub.engine->deformed_positions_mm();
+    if (sub.stepped) take_positions(sub);
   }
 }
 
@@ -951,7 +954,7 @@ void StitchedVolume::revert_frame(std::span<const int> stepped) {
     SubVolume& sub = subs_[stepped[i]];
     frame_start_displacements(sub);
     sub.engine->set_displacements_mm(sub.revert_mm);
-    sub.positions_mm = sub.engine->deformed_positions_mm();
+    take_positions(sub);
   };
   hal::parallel_for(jobs_, static_cast<int>(stepped.size()), revert);
 }
@@ -978,7 +981,7 @@ bool StitchedVolume::cut_back_frame(std::span<const int> stepped) {
       SubVolume& sub = subs_[stepped[i]];
       sub.cut_back_mm = 0.5 * (sub.revert_mm + sub.cut_back_mm);  // half of what is left
       sub.engine->set_displacements_mm(sub.cut_back_mm);
-      sub.positions_mm = sub.engine->deformed_positions_mm();
+      take_positions(sub);
     });
     if (!tears_a_seam(stepped, false)) return true;
   }
@@ -1020,7 +1023,7 @@ void StitchedVolume::join_held_copies_of(int g) {
   int held = 0;
   for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
     if (!subs_[copies_[c].sub].engine->holds_node(copies_[c].local)) continue;
-    const Eigen::Vector3d x = copy_position(copies_[c]);
+    const Eigen::Vector3d& x = copy_positions_mm_[c];
     sum += x;
     spread.extend(x);
     ++held;
@@ -1034,6 +1037,7 @@ void StitchedVolume::join_held_copies_of(int g) {
     SubVolume& sub = subs_[copies_[c].sub];
     sub.engine->move_held_node_mm(copies_[c].local, mean);  // leaves a free copy where it is
     sub.positions_mm = sub.engine->deformed_positions_mm();
+    copy_positions_mm_[c] = sub.positions_mm[copies_[c].local];  // the one node it moved
     sub.moved = true;
   }
 }
@@ -1058,7 +1062,7 @@ void StitchedVolume::correct_coarsely() {
       // Σ over the other copies of k (x_d − x_c) = k (sum − count·x_c).
       coarse_->add_seam_force(
           copies_[c].sub, copies_[c].local,
-          seam_stiffness_mn_per_mm_[g] * (sum - (end - begin) * copy_position(copies_[c])) +
+          seam_stiffness_mn_per_mm_[g] * (sum - (end - begin) * copy_positions_mm_[c]) +
               seam_load_mn_[c]);
     }
   }
@@ -1073,7 +1077,7 @@ void StitchedVolume::correct_coarsely() {
   const auto apply = [&](int i) {
     SubVolume& sub = subs_[corrected_[i]];
     coarse_->apply(corrected_[i], *sub.engine);
-    sub.positions_mm = sub.engine->deformed_positions_mm();
+    take_positions(sub);
     sub.moved = true;
     sub.asleep = false;
   };
@@ -1151,8 +1155,9 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
 
 double StitchedVolume::widest_copy_gap_mm(int g) const {
   const int begin = copies_begin_[g];
-  return widest_gap_mm(copies_begin_[g + 1] - begin,
-                       [&](int i) { return copy_position(copies_[begin + i]); });
+  return widest_gap_mm(copies_begin_[g + 1] - begin, [&](int i) -> const Eigen::Vector3d& {
+    return copy_positions_mm_[begin + i];
+  });
 }
 
 int StitchedVolume::seam_task_count() const {
@@ -1187,9 +1192,6 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
       sub.block_half_diagonal_mm[b] = 0.5 * sub.block_bounds[b].diagonal().norm();
     }
     sub.last_motion_mm = std::sqrt(motion_squared);
-    for (std::size_t k = 0; k < sub.shared_local.size(); ++k) {
-      copy_positions_mm_[sub.shared_copy[k]] = x[sub.shared_local[k]];
-    }
   });
   seams_to_update_.clear();
   for_each_moved_seam_node([](const SubVolume&, int) { return true; },
@@ -1260,7 +1262,7 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
       local.segment<3>(3 * static_cast<Eigen::Index>(l)) = u_mm.segment<3>(3 * sub.global_node[l]);
     }
     sub.engine->set_displacements_mm(local);
-    sub.positions_mm = sub.engine->deformed_positions_mm();
+    take_positions(sub);
     const auto x = sub.positions_mm;
     std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
     sub.asleep = false;

@@ -245,7 +245,7 @@ class StitchedVolume final : public DeformationEngine {
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
   void join_held_copies_of(int grid_node);
-  // A shared node's midpoint, gap, loads and pull from its copies (copy_positions_mm_).
+  // A shared node's midpoint, gap, loads and pull from its copies.
   int seam_task_count() const;  // finish_frame's tasks over the seams to update
   void update_seam(int grid_node, SeamLoads loads);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
@@ -253,7 +253,9 @@ class StitchedVolume final : public DeformationEngine {
   template <typename Keep, typename Visit>
   void for_each_moved_seam_node(Keep keep, Visit visit);
   void correct_coarsely();
-  Eigen::Vector3d copy_position(const Copy& c) const;
+  // The sub-volume's positions from its engine (positions_mm) and its seam copies' into
+  // copy_positions_mm_: after anything that moves its nodes.
+  void take_positions(SubVolume& sub);
   // The largest distance between two of grid node g's copies (the seam's gap there).
   double widest_copy_gap_mm(int g) const;
   // Σ of the positions of grid node g's copies.
@@ -318,8 +320,8 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<int> subs_to_look_at_;
   std::vector<double> seam_move_mm_;
   std::vector<std::uint8_t> tears_seam_;
-  // Per copy (as copies_), its position as of the last finish_frame that found its sub-volume
-  // moved: a seam node's copies side by side for update_seam (read from each sub-volume's own
+  // Per copy (as copies_), its position (take_positions): a seam node's copies side by side for
+  // the anchors, the seams' update and the tear check (read from each sub-volume's own
   // positions, the copies of a node lie apart and each read missed the cache: a third of the
   // seams' update).
   std::vector<Eigen::Vector3d> copy_positions_mm_;
