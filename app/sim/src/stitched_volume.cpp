@@ -784,17 +784,12 @@ void StitchedVolume::refresh_anchors(int s, const ProbeCollider* probe) {
   for (std::size_t i = 0; i < sub.shared_local.size(); ++i) {
     const int local = sub.shared_local[i];
     const int g = sub.global_node[local];
+    const int own = sub.shared_copy[i];
     Eigen::Vector3d others = Eigen::Vector3d::Zero();
-    int count = 0;
-    int own = 0;
     for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      if (copies_[c].sub == s) {
-        own = c;
-        continue;
-      }
-      others += copy_positions_mm_[c];
-      ++count;
+      if (c != own) others += copy_positions_mm_[c];
     }
+    const int count = copies_begin_[g + 1] - copies_begin_[g] - 1;
     // count springs of stiffness k to the other copies pull as one of k × count to their mean.
     // Where the probe will put a twin it has pushed into: anchored to where the twin was before
     // the step, a copy the probe catches alongside its twin is pulled back off the probe by the
