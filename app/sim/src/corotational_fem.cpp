@@ -933,7 +933,8 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
   return {it, residual / reference, cut_short};
 }
 
-CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::VectorXd& u) const {
+template <typename Position>
+CorotationalFem::InversionCount CorotationalFem::count_inverted_at(Position position) const {
   const int chunks = tet_chunks();
   for_each_chunk(chunks, [&](int chunk) {
     int inverted = 0, with_free_node = 0;
@@ -941,7 +942,9 @@ CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::Vec
     for (int t = begin; t < end; ++t) {
       const auto& tet = tets_[t];
       // Not `<= 0`: a NaN volume counts as inverted too.
-      if (deformed_edges(tet, rest_, u).determinant() > 0.0) continue;
+      const Eigen::Matrix3d edges =
+          edge_matrix(position(tet[0]), position(tet[1]), position(tet[2]), position(tet[3]));
+      if (edges.determinant() > 0.0) continue;
       ++inverted;
       // On the probe: held, or held along its normal (sliding).
       const auto on_probe = [&](int node) { return held_[node] || sliding_.slides(node); };
@@ -952,6 +955,15 @@ CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::Vec
   });
   const Eigen::Vector4d sums = sum_chunks(chunks);
   return {static_cast<int>(sums[0]), static_cast<int>(sums[1])};
+}
+
+CorotationalFem::InversionCount CorotationalFem::count_inverted(const Eigen::VectorXd& u) const {
+  return count_inverted_at(
+      [&](int node) -> Eigen::Vector3d { return rest_[node] + u.segment<3>(3 * node); });
+}
+
+CorotationalFem::InversionCount CorotationalFem::count_inverted_deformed() const {
+  return count_inverted_at([&](int node) -> const Eigen::Vector3d& { return deformed_[node]; });
 }
 
 int CorotationalFem::inverted_tet_count() const {
@@ -981,7 +993,7 @@ int CorotationalFem::inversion_limit() const {
 
 void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget& may_continue) {
   const bool finite = u_.allFinite();
-  const InversionCount inverted = finite ? count_inverted(u_) : InversionCount{};
+  const InversionCount inverted = finite ? count_inverted_deformed() : InversionCount{};
   stats.inverted_tets = inverted.total;
   // Tets whose four nodes are all on the probe (pressed flat between probe contacts) are the
   // constraints' doing, which no solve or retry changes: only the others count against a frame.
@@ -1013,6 +1025,7 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget
       const InversionCount cut = count_inverted(u_);
       if (cut.with_free_node <= allowed) {
         stats.inverted_tets = cut.total;  // what is shown
+        update_deformed();
         return;
       }
     }
@@ -1021,6 +1034,7 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget
   // the tissue would put nodes far inside it and start from a worse shape than this.
   u_ = u_before_step_;
   stats.inverted_tets = at_start.total;
+  update_deformed();
 }
 
 void CorotationalFem::update_deformed() {
@@ -1070,9 +1084,9 @@ EngineStepStats CorotationalFem::step_within(const ProbeCollider* probe, double 
   // A diverged step's held update counts toward the limit as any other, so the bound holds.
   // Taking the next due update whatever the time after one (tried) doubled the large soak's
   // diverged frames (313 against 146) and its corotational late frames (129 against 55).
+  update_deformed();
   accept_or_recover(stats, may_continue);
   stats.contact_force_n = measure_contact_forces();
-  update_deformed();
   return stats;
 }
 

@@ -260,7 +260,8 @@ class CorotationalFem final : public DeformationEngine {
   int inversion_limit() const;
   // Accepts the new shape, or recovers from a non-finite one or one inverted over the limit
   // (the shorter updates only while may_continue() allows; then the previous shape, cut short);
-  // fills the stats.
+  // fills the stats. Reads the new shape from the deformed positions, and leaves them at the
+  // shape it keeps.
   void accept_or_recover(EngineStepStats& stats, const StepBudget& may_continue);
   void update_deformed();
   // The Jacobi preconditioner's entries at a node: its diagonal block's and its anchor's.
@@ -269,7 +270,12 @@ class CorotationalFem final : public DeformationEngine {
     int total = 0;
     int with_free_node = 0;  // the solver's doing; tets with all four nodes on the probe are not
   };
+  // At rest + u, or at the deformed positions (update_deformed: half the memory read, the same
+  // sums, so the same count).
   InversionCount count_inverted(const Eigen::VectorXd& u) const;
+  InversionCount count_inverted_deformed() const;
+  template <typename Position>
+  InversionCount count_inverted_at(Position position) const;
 
   // Runs body(chunk) for chunk in [0, chunks): on the job system when there is one.
   template <typename Body>
