@@ -1086,9 +1086,7 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
   const auto at_hand =
       std::span(copy_positions_mm_)
           .subspan(static_cast<std::size_t>(begin), static_cast<std::size_t>(count));
-  // Summed in the copies' order, as copies_sum does.
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& x : at_hand) sum += x;
+  const Eigen::Vector3d sum = copies_sum(g);
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
   if (fixed_[g]) {
