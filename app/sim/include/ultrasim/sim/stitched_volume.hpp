@@ -172,6 +172,9 @@ class StitchedVolume final : public DeformationEngine {
     bool moved = false;  // this frame: stepped, or moved by a correction or a join
     EngineStepStats last_stats;
   };
+  // Beyond the probe's surface by this much a node is not in contact (the engines' contact
+  // tolerances are far smaller): a sub-volume whose every node is farther is out of reach.
+  static constexpr double kReachMarginMm = 0.5;
   // A copy of a grid node: the sub-volume and its local node.
   struct Copy {
     int sub = 0;
@@ -217,6 +220,15 @@ class StitchedVolume final : public DeformationEngine {
   // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
   // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
   // reach test widens by the move.
+  // The frame's verdict on the sub-volumes it stepped (`in_reach`: how many the probe may touch;
+  // `deferred`: a due one was left for later): refused and reverted, cut back along its update,
+  // or kept (the held copies joined, the fine correction); then the coarse residuals, the seams
+  // and shown positions (finish_frame). Returns the frame's stats as one engine's.
+  EngineStepStats settle_frame(std::span<const int> stepped, int in_reach, bool deferred,
+                               const StepBudget& may_continue);
+  // The stepped sub-volumes' stats as one engine's: work and contact summed, the worst of the
+  // rest.
+  EngineStepStats stepped_stats() const;
   // Whether the frame must be refused as a whole: a sub-volume refused its part or was reset.
   // Accepting the rest would leave that sub-volume at its frame's start, or at rest, against
   // neighbours pressed on: the seam tears, its springs pull the copies apart harder each frame,
