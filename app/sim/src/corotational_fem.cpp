@@ -571,6 +571,12 @@ void CorotationalFem::set_anchor_springs(std::span<const AnchorSpring> anchors) 
   anchored_nodes_.swap(next_anchored_nodes_);
 }
 
+bool CorotationalFem::tangent_stiffness_times(const Eigen::VectorXd& v_mm,
+                                              Eigen::VectorXd& out_mn) const {
+  for (int n = 0; n < node_count(); ++n) out_mn.segment<3>(3 * n) = warped_row_times(n, v_mm);
+  return true;
+}
+
 Eigen::SparseMatrix<double, Eigen::RowMajor> CorotationalFem::rest_stiffness_mn_per_mm() const {
   // The warped stiffness's blocks with every rotation the identity.
   std::vector<Eigen::Matrix3d> blocks(block_col_.size());

@@ -82,7 +82,9 @@ void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal:
     for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
       sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
     }
-    sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill);
+    if (!engines_[stepped_list_[i]]->tangent_stiffness_times(sub.local_in, sub.local_out)) {
+      sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill);
+    }
   };
   hal::parallel_for(jobs, static_cast<int>(stepped_list_.size()), product);
   gather(q, true);
@@ -137,6 +139,7 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   if (!any_free) return result;
   // The residual: the tissue's forces summed over the copies (the seams' pulls on a node whose
   // every copy moves alike cancel).
+  engines_ = engines;
   const auto forces = [&](int i) {
     const int s = stepped_list_[i];
     engines[s]->tissue_forces_mn(subs_[s].local_out);

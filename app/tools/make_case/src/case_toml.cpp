@@ -115,8 +115,8 @@ std::string default_case_toml(const Eigen::Vector3d& region_min_mm,
   t += "nodes = [" + std::to_string(layout.nodes[0]) + ", " + std::to_string(layout.nodes[1]) +
        ", " + std::to_string(layout.nodes[2]) + "]  # " + layout.nodes_comment + "\n";
   if (layout.sub_volumes != std::array<int, 3>{1, 1, 1}) {
-    t += "# Stitched (docs/architecture.md): pcg and the MSDS run per sub-volume; the other\n";
-    t += "# methods are refused on this case.\n";
+    t += "# Stitched (docs/architecture.md): pcg, corotational and the MSDS run per sub-volume;\n";
+    t += "# the other methods are refused on this case.\n";
     t += "sub_volumes = [" + std::to_string(layout.sub_volumes[0]) + ", " +
          std::to_string(layout.sub_volumes[1]) + ", " + std::to_string(layout.sub_volumes[2]) +
          "]\n";

@@ -79,6 +79,8 @@ class CorotationalFem final : public DeformationEngine {
   bool supports_anchor_springs() const override { return true; }
   void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
   Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override;
+  // K_R v (the last assembly's warped blocks; no anchors), on the calling thread.
+  bool tangent_stiffness_times(const Eigen::VectorXd& v_mm, Eigen::VectorXd& out_mn) const override;
   void tissue_forces_mn(Eigen::VectorXd& forces_mn) const override;
   bool holds_node(int node) const override {
     return fixed_[node] != 0 || prescribed_[node] != 0 || held_[node] != 0 || sliding_.slides(node);

@@ -134,6 +134,17 @@ class DeformationEngine {
   virtual Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const {
     throw std::logic_error(std::string(name()) + " has no coarse-correction interface");
   }
+  // The stiffness the method's last step solved with, times v_mm (3 × node count, mN/mm × mm),
+  // where that is not the rest stiffness: the corotational FEM's warped K_R, with the rotations
+  // its tets hold (the rest stiffness points a large rotation's step elsewhere: a stitched
+  // region's fine correction tore the large case's seams under 13 mm presses). False, and out_mn
+  // untouched, where the rest stiffness is the method's own (the PCG FEM) or its chosen
+  // linearisation (the MSDS). Does not allocate; const, so one engine per thread may call it in
+  // parallel.
+  virtual bool tangent_stiffness_times(const Eigen::VectorXd& /*v_mm*/,
+                                       Eigen::VectorXd& /*out_mn*/) const {
+    return false;
+  }
   // The tissue's own force on every node at the current shape, mN (−K u for the FEM; the springs'
   // pull for the MSDS), without anchors, damping or the probe. `forces_mn` must have 3 × node
   // count entries. Does not allocate; const, so one engine per thread may call it in parallel.

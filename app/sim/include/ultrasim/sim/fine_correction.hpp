@@ -19,7 +19,9 @@ namespace ultrasim::sim {
 // frame let the sub-volumes around a press settle like a block Jacobi iteration, one seam a
 // frame; this solves
 //   (D K D) Δu = D f,
-// K and f the stepped sub-volumes' rest stiffnesses and elastic forces summed over the copies of
+// K and f the stepped sub-volumes' stiffnesses (each method's tangent where it has its own,
+// DeformationEngine::tangent_stiffness_times: the corotational FEM's warped K_R; else the rest
+// stiffness) and elastic forces summed over the copies of
 // each grid node (the overlap's stiffness split among its copies makes them add up to one
 // piece's), D the grid nodes that are neither fixed nor held by the probe in any copy and whose
 // every copy stepped (the rest stay where the frame left them), and adds Δu to every copy. A node
@@ -28,10 +30,12 @@ namespace ultrasim::sim {
 // (a filtered CG). For
 // the linear (PCG) FEM it is the one-piece solve's own step from the stitched shape; for the
 // MSDS the stiffness is linearised about rest, and the step is quasi-static: it moves the tissue
-// toward equilibrium, not along the one piece's damped motion.
+// toward equilibrium, not along the one piece's damped motion. For the corotational FEM it is its
+// own step with the rotations its tets hold.
 //
-// Jacobi-preconditioned; the products run per sub-volume on the job system and are summed per
-// grid node. Nothing allocates after construction. The frame thread calls correct().
+// Jacobi-preconditioned (the rest stiffness's diagonal, for every method); the products run per
+// sub-volume on the job system and are summed per grid node. Nothing allocates after construction.
+// The frame thread calls correct().
 class FineCorrection {
  public:
   // Per sub-volume, its local nodes' grid nodes and its engine (rest_stiffness_mn_per_mm is
@@ -89,6 +93,7 @@ class FineCorrection {
   std::vector<std::uint8_t> stepped_;  // per sub-volume
   std::vector<int> stepped_list_;
   Eigen::VectorXd x_, r_, z_, p_, q_;
+  std::span<DeformationEngine* const> engines_;  // correct()'s, for its products
 };
 
 }  // namespace ultrasim::sim
