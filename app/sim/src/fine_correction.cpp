@@ -75,14 +75,15 @@ void FineCorrection::gather(Eigen::VectorXd& out, bool free_only) const {
   }
 }
 
-void FineCorrection::multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal::JobSystem* jobs) {
+void FineCorrection::multiply(std::span<DeformationEngine* const> engines, const Eigen::VectorXd& p,
+                              Eigen::VectorXd& q, hal::JobSystem* jobs) {
   // p is 0 off the free nodes, so each copy takes its grid node's value as it is.
   const auto product = [&](int i) {
     Sub& sub = subs_[stepped_list_[i]];
     for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
       sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
     }
-    if (!engines_[stepped_list_[i]]->tangent_stiffness_times(sub.local_in, sub.local_out)) {
+    if (!engines[stepped_list_[i]]->tangent_stiffness_times(sub.local_in, sub.local_out)) {
       sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill);
     }
   };
@@ -139,7 +140,6 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   if (!any_free) return result;
   // The residual: the tissue's forces summed over the copies (the seams' pulls on a node whose
   // every copy moves alike cancel).
-  engines_ = engines;
   const auto forces = [&](int i) {
     const int s = stepped_list_[i];
     engines[s]->tissue_forces_mn(subs_[s].local_out);
@@ -161,7 +161,7 @@ FineCorrection::Result FineCorrection::correct(std::span<DeformationEngine* cons
   double norm = r_.norm();
   while (result.iterations < iterations && rz > 0.0 && norm > relative_tolerance * load &&
          (!may_continue || may_continue())) {
-    multiply(p_, q_, jobs);
+    multiply(engines, p_, q_, jobs);
     filter(q_);
     // Not positive definite along p: stop with what there is.
     if (!jacobi_cg_update(inverse_diagonal_, q_, x_, r_, z_, p_, rz, filter)) break;

@@ -72,8 +72,9 @@ class FineCorrection {
     int sub = 0;
     int local = 0;
   };
-  // q = D K D p over the stepped sub-volumes.
-  void multiply(const Eigen::VectorXd& p, Eigen::VectorXd& q, hal::JobSystem* jobs);
+  // q = D K D p over the stepped sub-volumes (`engines`: correct()'s).
+  void multiply(std::span<DeformationEngine* const> engines, const Eigen::VectorXd& p,
+                Eigen::VectorXd& q, hal::JobSystem* jobs);
   // out = Σ over each grid node's copies of the sub-volumes' local_out (free_only: over the free
   // nodes, 0 elsewhere).
   void gather(Eigen::VectorXd& out, bool free_only) const;
@@ -93,7 +94,6 @@ class FineCorrection {
   std::vector<std::uint8_t> stepped_;  // per sub-volume
   std::vector<int> stepped_list_;
   Eigen::VectorXd x_, r_, z_, p_, q_;
-  std::span<DeformationEngine* const> engines_;  // correct()'s, for its products
 };
 
 }  // namespace ultrasim::sim

@@ -217,9 +217,6 @@ class StitchedVolume final : public DeformationEngine {
   // The fine correction over the sub-volumes that stepped, after their steps (may_continue: the
   // frame's budget, as for the steps).
   void correct_finely(const StepBudget& may_continue);
-  // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
-  // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
-  // reach test widens by the move.
   // The frame's verdict on the sub-volumes it stepped (`in_reach`: how many the probe may touch;
   // `deferred`: a due one was left for later): refused and reverted, cut back along its update,
   // or kept (the held copies joined, the fine correction); then the coarse residuals, the seams
@@ -264,6 +261,9 @@ class StitchedVolume final : public DeformationEngine {
   // shares at a local node keep(sub, local) accepts.
   template <typename Keep, typename Visit>
   void for_each_moved_seam_node(Keep keep, Visit visit);
+  // The coarse step, at a frame's start; moves (and wakes) every sub-volume it asks to move by
+  // more than the sleep motion. Block bounds are refreshed at the frame's end: until then the
+  // reach test widens by the move.
   void correct_coarsely();
   // The sub-volume's positions from its engine (positions_mm) and its seam copies' into
   // copy_positions_mm_: after anything that moves its nodes.
