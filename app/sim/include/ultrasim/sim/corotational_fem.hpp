@@ -72,10 +72,11 @@ class CorotationalFem final : public DeformationEngine {
 
   // Volume stitching (StitchedVolume), as the PCG FEM's: an anchor adds k I to its node's row of
   // the system and k (target − rest) to its rhs (outside the warped blocks, so moving anchors
-  // re-sum nothing). The coarse and fine corrections: the rest stiffness (LinearFem's), the
-  // tissue's force Σ R K_e (x0 − Rᵀ x0) − K_R u with the rotations the tets hold, the held nodes
-  // (fixed, prescribed, on the probe), moves of the free ones (the sliding ones in their tangent
-  // planes) and of a held one.
+  // re-sum nothing). The coarse and fine corrections: the rest stiffness (LinearFem's; the
+  // coarse operator and the fine one's preconditioner), the warped one's product (the fine
+  // correction's steps), the tissue's force Σ R K_e (x0 − Rᵀ x0) − K_R u with the rotations the
+  // tets hold, the held nodes (fixed, prescribed, on the probe), moves of the free ones (the
+  // sliding ones in their tangent planes) and of a held one.
   bool supports_anchor_springs() const override { return true; }
   void set_anchor_springs(std::span<const AnchorSpring> anchors) override;
   Eigen::SparseMatrix<double, Eigen::RowMajor> rest_stiffness_mn_per_mm() const override;

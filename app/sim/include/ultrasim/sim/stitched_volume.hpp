@@ -254,8 +254,8 @@ class StitchedVolume final : public DeformationEngine {
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
   void join_held_copies_of(int grid_node);
-  // A shared node's midpoint, gap, loads and pull from its copies.
   int seam_task_count() const;  // finish_frame's tasks over the seams to update
+  // A shared node's midpoint, gap, loads and pull from its copies.
   void update_seam(int grid_node, SeamLoads loads);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
   // shares at a local node keep(sub, local) accepts.
