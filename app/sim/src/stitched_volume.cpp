@@ -319,31 +319,38 @@ void StitchedVolume::set_displacements_mm(const Eigen::VectorXd& u_mm) {
                                 std::to_string(u_.size()) + " values, got " +
                                 std::to_string(u_mm.size()));
   }
-  // Copies put alike carry no load between them.
-  std::fill(seam_load_mn_.begin(), seam_load_mn_.end(), Eigen::Vector3d::Zero());
-  std::fill(step_next_.begin(), step_next_.end(), 0);
-  std::fill(seam_pull_before_mn_.begin(), seam_pull_before_mn_.end(), Eigen::Vector3d::Zero());
-  for (auto& sub : subs_) {
-    Eigen::VectorXd local(3 * static_cast<Eigen::Index>(sub.global_node.size()));
-    for (std::size_t l = 0; l < sub.global_node.size(); ++l) {
-      local.segment<3>(3 * static_cast<Eigen::Index>(l)) = u_mm.segment<3>(3 * sub.global_node[l]);
-    }
-    sub.engine->set_displacements_mm(local);
-    take_positions(sub);
-    const auto x = sub.positions_mm;
-    std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
-    sub.asleep = false;
-    sub.stepped = sub.moved = true;
-  }
-  if (coarse_) {
-    for (int s = 0; s < sub_volume_count(); ++s) coarse_->update(s, *subs_[s].engine);
-  }
+  place_sub_volumes(&u_mm);
+  for (auto& sub : subs_) sub.stepped = true;
   finish_frame(SeamLoads::kKeep);
   for (auto& sub : subs_) {
     sub.stepped = sub.moved = false;
     sub.asleep = false;
   }
   stats_.updates_held = 0;
+}
+
+void StitchedVolume::place_sub_volumes(const Eigen::VectorXd* u_mm) {
+  // Copies put alike carry no load between them.
+  std::fill(seam_load_mn_.begin(), seam_load_mn_.end(), Eigen::Vector3d::Zero());
+  std::fill(step_next_.begin(), step_next_.end(), 0);
+  std::fill(seam_pull_before_mn_.begin(), seam_pull_before_mn_.end(), Eigen::Vector3d::Zero());
+  for (auto& sub : subs_) {
+    // revert_mm is the frame verdict's scratch, sized once: placing allocates nothing.
+    for (std::size_t l = 0; l < sub.global_node.size(); ++l) {
+      sub.revert_mm.segment<3>(3 * static_cast<Eigen::Index>(l)) =
+          u_mm != nullptr ? Eigen::Vector3d(u_mm->segment<3>(3 * sub.global_node[l]))
+                          : Eigen::Vector3d::Zero();
+    }
+    sub.engine->set_displacements_mm(sub.revert_mm);
+    take_positions(sub);
+    const auto x = sub.positions_mm;
+    std::copy(x.begin(), x.end(), sub.previous_positions_mm.begin());
+    sub.asleep = false;
+    sub.moved = true;
+  }
+  if (coarse_) {
+    for (int s = 0; s < sub_volume_count(); ++s) coarse_->update(s, *subs_[s].engine);
+  }
 }
 
 }  // namespace ultrasim::sim

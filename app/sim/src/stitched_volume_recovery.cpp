@@ -135,21 +135,34 @@ EngineStepStats StitchedVolume::settle_frame(std::span<const int> stepped, int i
   const bool cut_back =
       refused && refusal == DivergenceCause::kSeamTorn && in_reach == 0 && cut_back_frame(stepped);
   refused = refused && !cut_back;
+  // A sub-volume that kept its last good shape only because the budget ran out before smaller
+  // steps were tried gives no verdict: as for one piece, the next frame tries again.
+  const bool out_of_time = refused && std::ranges::any_of(stepped, [this](int s) {
+                             const EngineStepStats& stats = subs_[s].last_stats;
+                             return stats.recovery == Recovery::kKeptLastGood && stats.cut_short;
+                           });
+  // Refused with nothing in reach and no part of it kept, the next frame is this one again (the
+  // loads halved at most): the tissue stayed where the probe left it, for good (refuse_gap_mm
+  // 0.01: a released press held 2.4 mm deep, every frame refused). With nothing on it the
+  // tissue's equilibrium is rest, and the region goes there.
+  const bool to_rest = refused && in_reach == 0 && !out_of_time;
   // A sub-volume marked to step has, once its frame is kept; the marks of a frame cut back came
   // from tears its kept part does not have.
   for (int s = 0; s < sub_volume_count(); ++s) {
     if (cut_back || (!refused && subs_[s].stepped)) step_next_[s] = 0;
   }
   // A refused frame with the probe in reach is tried again at another pose (the session's
-  // RefusedPress); one with nothing in reach is the same frame again unless the loads change.
-  // A frame cut back is the tissue springing back with nothing in reach: the loads are
-  // released as for a refusal, else they keep a seam they opened at the bound.
-  const SeamLoads loads = settings_.seam_load_rate <= 0.0 ? SeamLoads::kKeep
-                          : cut_back                      ? SeamLoads::kHalve
-                          : !refused                      ? SeamLoads::kRemember
-                          : in_reach == 0                 ? SeamLoads::kHalve
-                                                          : SeamLoads::kKeep;
-  if (refused) {
+  // RefusedPress); one with nothing in reach, out of time, again with its loads halved (put to
+  // rest, the seams carry none). A frame cut back is the tissue springing back with nothing in
+  // reach: the loads are released as for a refusal, else they keep a seam they opened at the bound.
+  const SeamLoads loads = settings_.seam_load_rate <= 0.0 || to_rest ? SeamLoads::kKeep
+                          : cut_back                                 ? SeamLoads::kHalve
+                          : !refused                                 ? SeamLoads::kRemember
+                          : in_reach == 0                            ? SeamLoads::kHalve
+                                                                     : SeamLoads::kKeep;
+  if (to_rest) {
+    place_sub_volumes(nullptr);
+  } else if (refused) {
     revert_frame(stepped);
   } else {
     join_held_copies();
@@ -166,16 +179,11 @@ EngineStepStats StitchedVolume::settle_frame(std::span<const int> stepped, int i
   }
   if (refused) {
     // One piece's verdict on the press (the session then holds the probe where the tissue last
-    // took it), not a frame left unfinished, unless a sub-volume kept its last good shape only
-    // because the budget ran out before smaller steps were tried: as for one piece, no verdict,
-    // and the next frame tries again.
+    // took it), not a frame left unfinished unless out of time; or the region put to rest.
     out.diverged = true;
     out.cause = refusal;
-    out.recovery = Recovery::kKeptLastGood;
-    out.cut_short = std::ranges::any_of(stepped, [this](int s) {
-      const EngineStepStats& stats = subs_[s].last_stats;
-      return stats.recovery == Recovery::kKeptLastGood && stats.cut_short;
-    });
+    out.recovery = to_rest ? Recovery::kReset : Recovery::kKeptLastGood;
+    out.cut_short = out_of_time;
   }
   finish_frame(loads);
   return out;

@@ -244,6 +244,9 @@ class StitchedVolume final : public DeformationEngine {
   bool tears_a_seam(std::span<const int> stepped, bool mark_standing);
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
+  // Every sub-volume to the grid's field *u_mm (rest where null; copies of a shared node alike),
+  // at rest velocity and awake, marked moved, its seams carrying no load.
+  void place_sub_volumes(const Eigen::VectorXd* u_mm);
   // The displacements the frame found the sub-volume at, into its revert_mm.
   void frame_start_displacements(SubVolume& sub);
   // Every stepped sub-volume to half, a quarter, ... (to 1/256) of the way from where the frame
