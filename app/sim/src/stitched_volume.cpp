@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "stitched_frame_time.hpp"
 #include "ultrasim/sim/corotational_fem.hpp"
 
 namespace ultrasim::sim {
@@ -36,7 +37,8 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
       method_(method),
       settings_(stitching),
       jobs_(jobs),
-      fixed_(fixed_nodes.begin(), fixed_nodes.end()) {
+      fixed_(fixed_nodes.begin(), fixed_nodes.end()),
+      frame_time_(std::make_unique<StitchedFrameTime>(budget_mutex_)) {
   if (static_cast<int>(tet_materials.size()) != mesh_.tet_count()) {
     throw std::invalid_argument("StitchedVolume: " + std::to_string(tet_materials.size()) +
                                 " materials for " + std::to_string(mesh_.tet_count()) + " tets");

@@ -23,6 +23,7 @@
 namespace ultrasim::sim {
 
 class CorotationalFem;
+class StitchedFrameTime;
 
 // Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG and corotational
 // FEMs).
@@ -342,16 +343,8 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Eigen::Vector3d> copy_positions_mm_;
   Eigen::VectorXd u_;
   StitchStepStats stats_;
-  // How long the last budgeted frame's work after the steps took, µs (step_sharing keeps it back).
-  std::int64_t after_steps_us_ = 0;
-  // The last budgeted frame's costliest batch at its least (up to its first question), µs.
-  std::int64_t batch_cost_us_ = 0;
-  // The last budgeted frame's costliest batch up to its first question among those in which a
-  // corotational sub-volume brought its warped system up to date, µs (0 until one did).
-  std::int64_t update_batch_cost_us_ = 0;
-  // The longest a batch worked on after its first "no", µs, in the last budgeted frame that said
-  // one (step_sharing keeps it back from each batch's share).
-  std::int64_t batch_tail_us_ = 0;
+  // The frame's time shared over its exchanges and batches, and what they cost (step_sharing).
+  std::unique_ptr<StitchedFrameTime> frame_time_;
 };
 
 }  // namespace ultrasim::sim
