@@ -31,15 +31,19 @@ FineCorrection::FineCorrection(std::span<const std::vector<int>> grid_nodes,
     if (stiffness.rows() != 3 * local || stiffness.cols() != 3 * local) {
       throw std::invalid_argument("FineCorrection: an engine's stiffness does not fit its nodes");
     }
-    sub.stiffness = detail::NodeBlockMatrix(stiffness, 1);
+    // Asked once (the answer holds for the engine's life): an engine with its own tangent needs
+    // only the rest stiffness's diagonal here (the large case's 25 corotational sub-volumes'
+    // block matrices, built and never multiplied, held 55 MB of the kiosk's 647 MB).
+    sub.local_in = Eigen::VectorXd::Zero(3 * local);
+    sub.local_out = Eigen::VectorXd::Zero(3 * local);
+    sub.own_tangent = engines[s]->tangent_stiffness_times(sub.local_in, sub.local_out);
+    if (!sub.own_tangent) sub.stiffness = detail::NodeBlockMatrix(stiffness, 1);
     for (int l = 0; l < local; ++l) {
       const int g = sub.grid_node[l];
       if (g < 0 || g >= n) throw std::invalid_argument("FineCorrection: a node off the grid");
       ++copy_count[g];
       for (int d = 0; d < 3; ++d) diagonal[3 * g + d] += stiffness.coeff(3 * l + d, 3 * l + d);
     }
-    sub.local_in = Eigen::VectorXd::Zero(3 * local);
-    sub.local_out = Eigen::VectorXd::Zero(3 * local);
   }
   copies_begin_.assign(n + 1, 0);
   for (int g = 0; g < n; ++g) copies_begin_[g + 1] = copies_begin_[g] + copy_count[g];
@@ -83,7 +87,9 @@ void FineCorrection::multiply(std::span<DeformationEngine* const> engines, const
     for (std::size_t l = 0; l < sub.grid_node.size(); ++l) {
       sub.local_in.segment<3>(3 * l) = p.segment<3>(3 * sub.grid_node[l]);
     }
-    if (!engines[stepped_list_[i]]->tangent_stiffness_times(sub.local_in, sub.local_out)) {
+    if (sub.own_tangent) {
+      engines[stepped_list_[i]]->tangent_stiffness_times(sub.local_in, sub.local_out);
+    } else {
       sub.stiffness.times_band(0, sub.local_in, nullptr, sub.local_out, sub.spill);
     }
   };

@@ -139,8 +139,8 @@ class DeformationEngine {
   // its tets hold (the rest stiffness points a large rotation's step elsewhere: a stitched
   // region's fine correction tore the large case's seams under 13 mm presses). False, and out_mn
   // untouched, where the rest stiffness is the method's own (the PCG FEM) or its chosen
-  // linearisation (the MSDS). Does not allocate; const, so one engine per thread may call it in
-  // parallel.
+  // linearisation (the MSDS); the same answer for the engine's life. Does not allocate; const,
+  // so one engine per thread may call it in parallel.
   virtual bool tangent_stiffness_times(const Eigen::VectorXd& /*v_mm*/,
                                        Eigen::VectorXd& /*out_mn*/) const {
     return false;

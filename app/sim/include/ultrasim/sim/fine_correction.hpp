@@ -39,7 +39,8 @@ namespace ultrasim::sim {
 class FineCorrection {
  public:
   // Per sub-volume, its local nodes' grid nodes and its engine (rest_stiffness_mn_per_mm is
-  // taken now); per grid node, whether it is fixed. Allocates.
+  // taken now, and whether it multiplies with its own tangent); per grid node, whether it is
+  // fixed. Allocates.
   FineCorrection(std::span<const std::vector<int>> grid_nodes,
                  std::span<const DeformationEngine* const> engines,
                  std::span<const std::uint8_t> fixed_grid_nodes);
@@ -62,8 +63,10 @@ class FineCorrection {
  private:
   struct Sub {
     std::vector<int> grid_node;  // per local node
-    // The engine's rest stiffness in node blocks (its products stream half the bytes), one band:
-    // a sub-volume's product is one task of the job system.
+    // Whether the engine multiplies with its own tangent (tangent_stiffness_times); if not, its
+    // rest stiffness in node blocks (its products stream half the bytes), one band: a
+    // sub-volume's product is one task of the job system.
+    bool own_tangent = false;
     detail::NodeBlockMatrix stiffness;
     Eigen::VectorXd spill;                // of the one band: empty
     Eigen::VectorXd local_in, local_out;  // 3 × local nodes: scratch
