@@ -1,8 +1,8 @@
 #pragma once
 
 // A stitched frame's time (internal to StitchedVolume::step_sharing): the time left shared
-// evenly over the frame's exchanges and, within the first, over its planned batches; the budget a
-// batch's sub-volumes ask; and what the batches cost, kept for the next frame's plan. Times in µs
+// evenly over the frame's exchanges and, within each, over its batches; the budget a batch's
+// sub-volumes ask; and what the batches cost, kept for the next frame's plan. Times in µs
 // from the caller's clock (the library reads none).
 
 #include <cstdint>
@@ -25,8 +25,8 @@ class StitchedFrameTime {
 
   // A frame of `parts` exchanges starts; its time is shared only when both the budget and the
   // time left are given (they must outlive the frame). Plans the first exchange's batches: the
-  // touched ones and as many of the others as fit at the last frame's least batch cost (at least
-  // one: a frame with nothing touched still shares its time among those that run).
+  // touched ones and as many of the others as fit at the least batch cost last measured (at
+  // least one: a frame with nothing touched still shares its time among those that run).
   void start_frame(const StepBudget& may_continue, const TimeLeftUs& time_left_us, int parts,
                    int touched_batches, int other_batches);
   bool shares() const { return shares_; }
@@ -54,8 +54,8 @@ class StitchedFrameTime {
   // Whether another batch of the first exchange may start, `batches_run` having run: a planned
   // one while time is left, a further one only if one at its least cost still ends in time.
   bool another_batch_fits(int batches_run) const;
-  // Whether a batch with a corotational update still ends in time (false until one was measured
-  // fits always).
+  // Whether a batch with a corotational update still ends in time (true until one was
+  // measured).
   bool update_batch_fits() const;
 
   // The frame's steps are done: keeps their measures for the next frame's plan.

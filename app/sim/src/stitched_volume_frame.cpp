@@ -3,12 +3,16 @@
 
 #include <algorithm>
 #include <mutex>
+#include <type_traits>
 
 #include "stitched_frame_time.hpp"
 #include "ultrasim/sim/corotational_fem.hpp"
 #include "ultrasim/sim/stitched_volume.hpp"
 
 namespace ultrasim::sim {
+
+// start_frame keeps the caller's function by address: the same type, or a temporary.
+static_assert(std::is_same_v<StitchedVolume::TimeLeftUs, StitchedFrameTime::TimeLeftUs>);
 
 namespace {
 

@@ -159,12 +159,13 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
   // one extra sub-volume a frame) is not held deformed by what they last carried. A copy the
   // probe holds does not answer its anchor either (two held apart would wind up for ever): the
   // free copies' change is taken by the held ones between them, and the loads still add up to
-  // zero over the node's copies. A refused frame with nothing in the probe's reach halves the
-  // loads of the seams it went back on: the loads themselves may tear a seam (a press they
-  // carried, released at once, opens the seam by load / k), and kept as they were the same frame
-  // would be refused for ever (a 2 × 1 split lifted from: 200 frames refused, the tissue left
-  // pressed 3.8 mm under no probe). Halved under a press too, they gave way to the springs alone
-  // frame after frame, and the large soak's refused frames rose (1,954 against 896-1,201).
+  // zero over the node's copies. A frame cut back with nothing in the probe's reach (or refused
+  // there for want of time) halves the loads of the seams it went back on: the loads themselves
+  // may tear a seam (a press they carried, released at once, opens the seam by load / k), and
+  // kept as they were the same frame would be refused for ever (a 2 × 1 split lifted from: 200
+  // frames refused, the tissue left pressed 3.8 mm under no probe). Halved under a press too, they
+  // gave way to the springs alone frame after frame, and the large soak's refused frames rose
+  // (1,954 against 896-1,201).
   const bool remember = loads == SeamLoads::kRemember && stepped == count;
   const double fade = loads == SeamLoads::kHalve                         ? 0.5
                       : loads == SeamLoads::kRemember && stepped < count ? kSeamLoadFadePerFrame

@@ -52,6 +52,7 @@ class FineCorrection {
     double relative_residual = 0.0;
     double largest_move_mm = 0.0;
   };
+  // `engines`: the constructor's (whether each multiplies with its own tangent was asked there).
   // At most `iterations` iterations over the sub-volumes flagged in `stepped`, then moves their
   // free nodes. Fewer once the free nodes' imbalance is below `relative_tolerance` of the load
   // (none when the tissue has settled), or when `may_continue` says the frame's time is up (it

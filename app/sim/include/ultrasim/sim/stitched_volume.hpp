@@ -147,7 +147,8 @@ class StitchedVolume final : public DeformationEngine {
     std::vector<int> shared_copy;
     std::vector<AnchorSpring> anchors;  // one per free shared node, refreshed before a step
     std::vector<Eigen::Vector3d> previous_positions_mm;
-    Eigen::VectorXd revert_mm;    // 3 × local nodes: a refused frame's displacements, sized once
+    // 3 × local nodes, sized once: a refused frame's displacements (place_sub_volumes' scratch).
+    Eigen::VectorXd revert_mm;
     Eigen::VectorXd cut_back_mm;  // 3 × local nodes: a frame cut back along its update
     // The engine's deformed positions (refreshed whenever it changes them).
     std::span<const Eigen::Vector3d> positions_mm;
@@ -207,8 +208,9 @@ class StitchedVolume final : public DeformationEngine {
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
                   bool first_part, const StepBudget& budget, bool hold_updates);
   // What a seam update does with the loads its copies carry: an accepted frame remembers, a
-  // refused or cut-back one with nothing in the probe's reach halves those of its seams, any
-  // other update (a refusal under the probe, construction, a reset) keeps them.
+  // cut-back one, or one refused for want of time with nothing in the probe's reach, halves
+  // those of its seams, any other update (a refusal under the probe, construction, a region put
+  // to rest, whose loads are zero) keeps them.
   enum class SeamLoads { kKeep, kRemember, kHalve };
   // Per shared node: gap and seam forces (and loads); per sub-volume: seam force, bounds, sleep.
   // Then the shown positions (copies' mean) and displacements.
@@ -220,8 +222,9 @@ class StitchedVolume final : public DeformationEngine {
   void correct_finely(const StepBudget& may_continue);
   // The frame's verdict on the sub-volumes it stepped (`in_reach`: how many the probe may touch;
   // `deferred`: a due one was left for later): refused and reverted, cut back along its update,
-  // or kept (the held copies joined, the fine correction); then the coarse residuals, the seams
-  // and shown positions (finish_frame). Returns the frame's stats as one engine's.
+  // the region put to rest (refused with nothing in reach, not for want of time), or kept (the
+  // held copies joined, the fine correction); then the coarse residuals, the seams and shown
+  // positions (finish_frame). Returns the frame's stats as one engine's.
   EngineStepStats settle_frame(std::span<const int> stepped, int in_reach, bool deferred,
                                const StepBudget& may_continue);
   // The stepped sub-volumes' stats as one engine's: work and contact summed, the worst of the
@@ -246,7 +249,8 @@ class StitchedVolume final : public DeformationEngine {
   // Every stepped sub-volume back to where the frame found it (at rest velocity).
   void revert_frame(std::span<const int> stepped);
   // Every sub-volume to the grid's field *u_mm (rest where null; copies of a shared node alike),
-  // at rest velocity and awake, marked moved, its seams carrying no load.
+  // at rest velocity, awake (finish_frame may put it to sleep), marked moved, its seams carrying
+  // no load.
   void place_sub_volumes(const Eigen::VectorXd* u_mm);
   // The displacements the frame found the sub-volume at, into its revert_mm.
   void frame_start_displacements(SubVolume& sub);
