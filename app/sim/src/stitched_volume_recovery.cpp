@@ -161,14 +161,14 @@ EngineStepStats StitchedVolume::settle_frame(std::span<const int> stepped, int i
                           : in_reach == 0                            ? SeamLoads::kHalve
                                                                      : SeamLoads::kKeep;
   if (to_rest) {
-    place_sub_volumes(nullptr);
+    place_sub_volumes(nullptr);  // every sub-volume's coarse residual with it
   } else if (refused) {
     revert_frame(stepped);
   } else {
     join_held_copies();
     correct_finely(may_continue);
   }
-  update_coarse_residuals(stepped);
+  if (!to_rest) update_coarse_residuals(stepped);
   EngineStepStats out = stepped_stats();
   // Deferred sub-volumes, or a stepped one's solve stopped by the budget.
   out.cut_short = out.cut_short || deferred;
