@@ -244,6 +244,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     session_owner.reset();
     session_owner = std::make_unique<Session>(next, case_settings, clock, jobs);
     session = session_owner.get();
+    if (options.return_freed_memory) options.return_freed_memory();
     case_index = index;
     loop.switch_session(*session);
     if (depth_mm) {
@@ -441,6 +442,9 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     const FrameOutcome& outcome = loop.outcome();
     if (options.resident_memory_kib && frame % frames_per_second == 0) {
       report.memory_kib.emplace_back(frame, options.resident_memory_kib());
+    }
+    if (options.heap_in_use_kib && frame % frames_per_second == 0) {
+      report.heap_in_use_kib.emplace_back(frame, options.heap_in_use_kib());
     }
 
     report.frames += 1;

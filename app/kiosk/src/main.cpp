@@ -169,6 +169,8 @@ int main(int argc, char** argv) {
     }
     if (realtime) std::cerr << "ultrasim-kiosk: realtime: " << options.realtime << "\n";
     options.resident_memory_kib = posix::resident_memory_kib;
+    options.heap_in_use_kib = posix::heap_in_use_kib;
+    options.return_freed_memory = posix::return_freed_memory;
     options.log_line = [](const std::string& line) {
       std::cerr << "ultrasim-kiosk: " << line << '\n';
     };

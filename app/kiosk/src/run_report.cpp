@@ -30,9 +30,10 @@ void write_stats(std::ostream& out, const sched::FrameTimeStats& s) {
 
 }  // namespace
 
-std::int64_t RunReport::memory_growth_kib() const {
+std::int64_t RunReport::growth_kib(
+    const std::vector<std::pair<std::int64_t, std::int64_t>>& samples) const {
   std::vector<std::int64_t> after;
-  for (const auto& [sample_frame, kib] : memory_kib) {
+  for (const auto& [sample_frame, kib] : samples) {
     if (sample_frame >= memory_baseline_frame) after.push_back(kib);
   }
   const std::size_t quarter = after.size() / 4;
@@ -43,6 +44,15 @@ std::int64_t RunReport::memory_growth_kib() const {
   };
   return median({after.end() - static_cast<std::ptrdiff_t>(quarter), after.end()}) -
          median({after.begin(), after.begin() + static_cast<std::ptrdiff_t>(quarter)});
+}
+
+std::int64_t RunReport::resident_beyond_heap_growth_kib() const {
+  std::vector<std::pair<std::int64_t, std::int64_t>> beyond;
+  for (std::size_t i = 0; i < std::min(memory_kib.size(), heap_in_use_kib.size()); ++i) {
+    if (memory_kib[i].first != heap_in_use_kib[i].first) break;  // not sampled together
+    beyond.emplace_back(memory_kib[i].first, memory_kib[i].second - heap_in_use_kib[i].second);
+  }
+  return growth_kib(beyond);
 }
 
 void write_report_json(const std::filesystem::path& path, const RunReport& r) {
@@ -150,12 +160,19 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
         << ", \"view_elevation_offset_deg\": " << s.view_elevation_offset_deg
         << ", \"view_zoom\": " << s.view_zoom << "}";
   }
+  const auto samples = [&out](const std::vector<std::pair<std::int64_t, std::int64_t>>& kib) {
+    for (std::size_t i = 0; i < kib.size(); ++i) {
+      out << (i ? ", " : "") << "[" << kib[i].first << ", " << kib[i].second << "]";
+    }
+  };
   out << "\n  ],\n  \"memory\": {\"baseline_frame\": " << r.memory_baseline_frame
       << ", \"growth_kib\": " << r.memory_growth_kib() << ", \"samples_kib\": [";
-  for (std::size_t i = 0; i < r.memory_kib.size(); ++i) {
-    out << (i ? ", " : "") << "[" << r.memory_kib[i].first << ", " << r.memory_kib[i].second << "]";
-  }
-  out << "]},\n  \"per_second\": [";
+  samples(r.memory_kib);
+  out << "], \"heap_in_use_growth_kib\": " << r.heap_in_use_growth_kib()
+      << ", \"heap_in_use_samples_kib\": [";
+  samples(r.heap_in_use_kib);
+  out << "], \"resident_beyond_heap_growth_kib\": " << r.resident_beyond_heap_growth_kib()
+      << "},\n  \"per_second\": [";
   for (std::size_t i = 0; i < r.per_second.size(); ++i) {
     const RunReport::SecondSample& s = r.per_second[i];
     out << (i ? ", " : "") << "{\"frame\": " << s.frame

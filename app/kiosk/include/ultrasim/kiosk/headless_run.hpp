@@ -35,6 +35,11 @@ struct HeadlessRunOptions {
   // The process's resident memory in KiB (an OS query the composition root injects), sampled
   // once a second of the script into report.json; unset: not sampled.
   std::function<std::int64_t()> resident_memory_kib;
+  // What the program holds allocated, KiB (the allocator's count), sampled with it; unset: not.
+  std::function<std::int64_t()> heap_in_use_kib;
+  // Hands freed memory back to the system (an OS call the composition root injects), after each
+  // case switch: the old case's engines are freed then; unset: left to the allocator.
+  std::function<void()> return_freed_memory;
   // The kiosk itself rather than a test run: every source moves in real time, frames are paced
   // by the display (a KMS display's vblank; the budget offscreen), no screenshots are taken, and
   // the run lasts until *stop turns true (a signal) or, when kiosk_seconds > 0, that long.

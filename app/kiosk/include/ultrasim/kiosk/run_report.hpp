@@ -114,6 +114,9 @@ struct RunReport {
   // first quarter, so that a cache filling or a case's buffers coming and going do not count
   // and a leak, growing all along, does; 0 with fewer than 4 samples.
   std::vector<std::pair<std::int64_t, std::int64_t>> memory_kib;
+  // Alongside, what the program holds allocated (heap_in_use_kib), sampled the same way: resident
+  // memory that steps up while this does not is freed memory the allocator kept, not a leak.
+  std::vector<std::pair<std::int64_t, std::int64_t>> heap_in_use_kib;
   // Once a second of frames, the strongest press and the widest stitched seam over that second
   // (its last frame): where a run's largest figures came from, and how they grew. And where its
   // late frames came from: how many of the second's frames were over the budget with the
@@ -130,7 +133,14 @@ struct RunReport {
   };
   std::vector<SecondSample> per_second;
   std::int64_t memory_baseline_frame = 0;
-  std::int64_t memory_growth_kib() const;
+  std::int64_t memory_growth_kib() const { return growth_kib(memory_kib); }
+  std::int64_t heap_in_use_growth_kib() const { return growth_kib(heap_in_use_kib); }
+  // Growth of resident memory less the heap in use, sample by sample: the code, the renderer's
+  // own mappings and what the allocator keeps of freed memory. Freed memory kept, this grows
+  // at each case switch (the old case's engines freed, the new one's fewer); handed back, not.
+  std::int64_t resident_beyond_heap_growth_kib() const;
+  // Growth of one series of (frame, KiB) samples, as above.
+  std::int64_t growth_kib(const std::vector<std::pair<std::int64_t, std::int64_t>>& samples) const;
 };
 
 // Writes the report as JSON (times in µs). Throws std::runtime_error naming the path on failure.
