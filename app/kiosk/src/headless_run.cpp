@@ -440,11 +440,13 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
     by_method->whole.record(tick.duration_us);
     by_method->render_capped.record(loop.last_frame_render_capped_us());
     const FrameOutcome& outcome = loop.outcome();
-    if (options.resident_memory_kib && frame % frames_per_second == 0) {
-      report.memory_kib.emplace_back(frame, options.resident_memory_kib());
-    }
-    if (options.heap_in_use_kib && frame % frames_per_second == 0) {
-      report.heap_in_use_kib.emplace_back(frame, options.heap_in_use_kib());
+    if (frame % frames_per_second == 0) {
+      if (options.resident_memory_kib) {
+        report.memory_kib.emplace_back(frame, options.resident_memory_kib());
+      }
+      if (options.heap_in_use_kib) {
+        report.heap_in_use_kib.emplace_back(frame, options.heap_in_use_kib());
+      }
     }
 
     report.frames += 1;

@@ -60,7 +60,7 @@ TEST_F(StitchedFrameTimeTest, PlansTheBatchesThatFitAtTheCostLastMeasured) {
   EXPECT_EQ(time_.first_part_reserve_us(0), 400 + 2800 + 2333);
   EXPECT_EQ(time_.first_part_reserve_us(5), 400 + 2800);
   // A planned batch while time is left beyond what is kept back; a further one only if one at
-  // its least cost (300) still ends in time_.
+  // its least cost (300) still ends in time.
   left_us_ = 3400;
   EXPECT_TRUE(time_.another_batch_fits(2));
   EXPECT_FALSE(time_.another_batch_fits(6));
