@@ -68,7 +68,9 @@ constexpr double kTouchToleranceMm = 1e-9;
 
 // A node this close to the probe's surface counts as on it (mm). Held nodes slide along tangent
 // planes, so on the probe's curved rim each round re-projects them; 10 µm (a tenth of a B-scan
-// pixel at 40 mm depth) ends that in a few rounds instead of creeping on for many.
+// pixel at 40 mm depth) ends that in a few rounds instead of creeping on for many; each frame
+// re-projects them again from where they are, so under a held probe they creep on to their
+// equilibrium on the rim over frames, a round a frame.
 constexpr double kSurfaceToleranceMm = 0.01;
 
 // Constraint forces below this (mN) are rounding, not pulling.
@@ -217,6 +219,7 @@ void ExactFem::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     if (fixed_[node]) u_.segment<3>(3 * node).setZero();
   }
   last_good_u_ = u_;
+  forget_contacts();
   update_deformed();
 }
 
@@ -314,6 +317,7 @@ Eigen::Matrix3d ExactFem::green_block(int a, int b) const {
 
 ExactFemStepStats ExactFem::solve(std::span<const PrescribedNode> held) {
   rows_.clear();
+  forget_contacts();
   for (const auto& h : held) {
     if (h.node < 0 || h.node >= node_count()) {
       throw std::out_of_range("ExactFem::solve: node " + std::to_string(h.node) + " out of range");
@@ -334,6 +338,7 @@ ExactFemStepStats ExactFem::solve(std::span<const PrescribedNode> held) {
 
 ExactFemStepStats ExactFem::solve(std::span<const NormalConstraint> constraints) {
   rows_.clear();
+  forget_contacts();
   for (const auto& c : constraints) {
     if (c.node < 0 || c.node >= node_count()) {
       throw std::out_of_range("ExactFem::solve: node " + std::to_string(c.node) + " out of range");
@@ -467,22 +472,17 @@ void ExactFem::accumulate_field() {
   hal::parallel_for(jobs_, bands, band);
 }
 
-EngineStepStats ExactFem::step_frictionless(const ProbeCollider& probe) {
-  // Start from the nodes inside or on the probe where the last frame left them; then rounds of
+EngineStepStats ExactFem::step_frictionless(const ProbeCollider& probe,
+                                            const StepBudget& may_continue) {
+  // Start from the last frame's contacts and the nodes now on or inside the probe; then rounds of
   // "release the nodes the probe would have to pull, re-project the ones that slid off its curved
   // rim, take in the nodes that end up inside". Rounds update only the skin (candidates) and the
   // held nodes; the whole field follows once they settle, and a last look over every node takes
   // in any non-skin node pushed inside (another round if so).
-  find_contacts(probe, deformed_, fixed_, kSurfaceToleranceMm, contacts_);
-  rows_.clear();
-  for (const auto& c : contacts_) {
-    rows_.push_back({c.node, c.normal, c.normal.dot(c.target_mm - rest_[c.node])});
-  }
-  std::fill(in_contact_.begin(), in_contact_.end(), 0);
-  std::fill(released_.begin(), released_.end(), 0);
+  start_from_last_contacts(probe);
   ExactFemStepStats stats;
   int round = 0;
-  bool whole_field = false;
+  bool whole_field = false, out_of_time = false;
   while (true) {
     const bool last_round = round + 1 >= settings_.max_contact_rounds;
     const ExactFemStepStats s = solve_rows(last_round ? Field::kWhole : Field::kSkin);
@@ -495,23 +495,77 @@ EngineStepStats ExactFem::step_frictionless(const ProbeCollider& probe) {
     stats.condensed_size = s.condensed_size;
     stats.contact_force_n = s.contact_force_n;
     if (last_round) break;
-    if (update_active_set(probe, /*skin_only=*/true)) continue;
-    update_whole_field();
-    whole_field = true;
-    if (!update_active_set(probe, /*skin_only=*/false)) break;
+    ActiveSetChange change = update_active_set(probe, /*skin_only=*/true);
+    if (!change.any()) {
+      update_whole_field();
+      whole_field = true;
+      change = update_active_set(probe, /*skin_only=*/false);
+      if (!change.any()) break;
+    }
+    // Another round. After one that let nodes go, always: no frame shows the probe pulling the
+    // skin (a lifted probe would take it up with it). After the others, while there is time: a
+    // frame out of time shows this round's answer (the nodes it took in still inside the probe,
+    // those it re-projected off its rim) and the next carries on from its set.
+    if (!change.released && may_continue && !may_continue()) {
+      out_of_time = true;
+      break;
+    }
   }
   if (!whole_field) update_whole_field();
+  // Where the rounds stopped, for the next frame: the set and, if they stopped for time, which
+  // nodes they let go (so frames out of time carry on the rounds instead of repeating them).
+  last_contacts_.clear();
+  for (const Row& row : rows_) last_contacts_.push_back(row.node);
+  rounds_unfinished_ = out_of_time;
   stats.contact_rounds = round;
   last_stats_ = stats;
   EngineStepStats out;
   out.iterations = round;
+  out.cut_short = out_of_time;
   out.contact_nodes = stats.contact_nodes;
   out.contact_force_n = stats.contact_force_n;
   return out;
 }
 
-bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
-  bool changed = false;
+void ExactFem::forget_contacts() {
+  last_contacts_.clear();
+  std::fill(released_.begin(), released_.end(), 0);
+  rounds_unfinished_ = false;
+}
+
+void ExactFem::start_from_last_contacts(const ProbeCollider& probe) {
+  // The nodes held when the last step ended, each at the probe's surface closest to where it is
+  // now: a probe held still finds its set settled, a moving one nearly so, instead of redoing
+  // the rounds from the nodes that touch it (up to all 8 on a held probe's 40-60 nodes).
+  rows_.clear();
+  std::fill(in_contact_.begin(), in_contact_.end(), 0);
+  for (int node : last_contacts_) {
+    const SurfacePoint surface = probe.closest_surface_point(deformed_[node]);
+    rows_.push_back({node, surface.normal, surface.normal.dot(surface.point_mm - rest_[node])});
+    in_contact_[node] = 1;
+  }
+  // And the nodes on or inside it now, but for those let go before that are still only on its
+  // surface: held again, they would be let go again, a round every other frame under a still
+  // probe. They stay let go while they stay there.
+  find_contacts(probe, deformed_, fixed_, kSurfaceToleranceMm, contacts_);
+  still_let_go_.clear();
+  for (const auto& c : contacts_) {
+    if (in_contact_[c.node]) continue;
+    if (released_[c.node] && c.depth_mm <= kSurfaceToleranceMm) {
+      still_let_go_.push_back(c.node);
+      continue;
+    }
+    rows_.push_back({c.node, c.normal, c.normal.dot(c.target_mm - rest_[c.node])});
+    in_contact_[c.node] = 1;
+  }
+  if (!rounds_unfinished_) {
+    std::fill(released_.begin(), released_.end(), 0);
+    for (int node : still_let_go_) released_[node] = 1;
+  }
+}
+
+ExactFem::ActiveSetChange ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
+  ActiveSetChange change;
   for (const auto& row : rows_) in_contact_[row.node] = 1;
   std::size_t kept = 0;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
@@ -521,7 +575,7 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
     if (lambda_mn_[static_cast<Eigen::Index>(j)] < -kPullToleranceMn && !released_[node]) {
       released_[node] = 1;
       in_contact_[node] = 0;
-      changed = true;
+      change.released = true;
       continue;
     }
     // A held node slides along its tangent plane; on a curved part of the probe that leaves it
@@ -533,7 +587,7 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
     if (std::abs((p - surface.point_mm).dot(surface.normal)) > kSurfaceToleranceMm) {
       row.direction = surface.normal;
       row.value_mm = surface.normal.dot(surface.point_mm - rest_[node]);
-      changed = true;
+      change.reprojected = true;
     }
   }
   rows_.resize(kept);
@@ -544,7 +598,7 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
     if ((deformed_[node] - surface.point_mm).dot(surface.normal) < -kSurfaceToleranceMm) {
       in_contact_[node] = 1;
       rows_.push_back({node, surface.normal, surface.normal.dot(surface.point_mm - rest_[node])});
-      changed = true;
+      change.taken_in = true;
     }
   };
   if (skin_only) {
@@ -552,7 +606,7 @@ bool ExactFem::update_active_set(const ProbeCollider& probe, bool skin_only) {
   } else {
     for (int node = 0; node < node_count(); ++node) take_in_if_inside(node);
   }
-  return changed;
+  return change;
 }
 
 EngineStepStats ExactFem::step(const ProbeCollider* probe, double frame_dt_s) {
@@ -562,9 +616,9 @@ EngineStepStats ExactFem::step(const ProbeCollider* probe, double frame_dt_s) {
 EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame_dt_s*/,
                                       const StepBudget& may_continue) {
   // One node's Green's functions are a full solve with the factor (~30 ms at 9k nodes): more
-  // than a frame's budget ever holds, so under a budget none is computed on the frame (the
-  // budget is not asked), and a node without them is not held; the job system's background
-  // thread, where there is one, solves for one such node at a time.
+  // than a frame's budget ever holds, so under a budget none is computed on the frame, and a
+  // node without them is not held; the job system's background thread, where there is one,
+  // solves for one such node at a time. The budget is asked between contact rounds.
   defer_uncached_ = static_cast<bool>(may_continue);
   // Later unbudgeted steps compute what they need, even if this one throws.
   struct Reset {
@@ -574,21 +628,23 @@ EngineStepStats ExactFem::step_within(const ProbeCollider* probe, double /*frame
   std::fill(deferred_.begin(), deferred_.end(), 0);
   adopt_background_solve();
   last_good_u_ = u_;
-  EngineStepStats out = solve_probe(probe);
+  EngineStepStats out = solve_probe(probe, may_continue);
   const auto first_deferred = std::find(deferred_.begin(), deferred_.end(), 1);
-  out.cut_short = first_deferred != deferred_.end();
-  if (out.cut_short) request_background_solve(static_cast<int>(first_deferred - deferred_.begin()));
+  const bool deferred_any = first_deferred != deferred_.end();
+  out.cut_short = out.cut_short || deferred_any;
+  if (deferred_any) request_background_solve(static_cast<int>(first_deferred - deferred_.begin()));
   return out;
 }
 
-EngineStepStats ExactFem::solve_probe(const ProbeCollider* probe) {
+EngineStepStats ExactFem::solve_probe(const ProbeCollider* probe, const StepBudget& may_continue) {
   EngineStepStats out;
+  if (probe == nullptr || settings_.contact != ContactModel::kFrictionless) forget_contacts();
   if (probe == nullptr) {
     rows_.clear();
     solve_rows(Field::kWhole);
     out.iterations = 1;
   } else if (settings_.contact == ContactModel::kFrictionless) {
-    out = step_frictionless(*probe);
+    out = step_frictionless(*probe, may_continue);
   } else {
     find_contacts(*probe, deformed_, fixed_, kTouchToleranceMm, contacts_);
     rows_.clear();
@@ -612,6 +668,7 @@ EngineStepStats ExactFem::solve_probe(const ProbeCollider* probe) {
     out.diverged = true;
     out.cause = u_.allFinite() ? DivergenceCause::kInverted : DivergenceCause::kNonFinite;
     out.recovery = Recovery::kKeptLastGood;
+    forget_contacts();
     u_ = last_good_u_;
     update_deformed();
   }

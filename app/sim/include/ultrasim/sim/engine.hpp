@@ -92,8 +92,10 @@ class DeformationEngine {
   // stop their conjugate-gradient iterations (always one at least; warm-started, they converge
   // over the next frames); the explicit MSDS stops stepping (a few steps at least: the
   // frame integrates less simulated time); the MSDS retries a rejected frame with smaller steps
-  // only while there is time (else it keeps the frame's start); the exact FEM does not hold nodes
-  // whose Green's functions it has not got (each costs a full solve, more than a frame has); a
+  // only while there is time (else it keeps the frame's start); the exact FEM stops its
+  // frictionless contact rounds (one at least; the next frame carries on from its set) and does
+  // not hold nodes whose Green's functions it has not got (each costs a full solve, more than a
+  // frame has); a
   // stitched volume leaves the sub-volumes the probe does not touch for later. Methods with no such
   // work ignore the budget. An empty may_continue: exactly step(). Does not allocate (nor does the
   // budget, if it fits std::function's local buffer: capture one pointer).

@@ -105,7 +105,9 @@ class ExactFem final : public DeformationEngine {
   // one node at a time, and a later frame takes its columns into the cache: under a budget on
   // every frame (the kiosk) a deep press past the skin's candidates converges to the exact
   // answer over a few frames per node. Without a background thread, only an unbudgeted step()
-  // fills the cache. The budget itself is not asked.
+  // fills the cache. The budget is asked before each frictionless contact round after one that
+  // let no node go; without time the frame shows the last round's answer (nodes it took in still
+  // inside the probe) and the next frame carries on from its set.
   EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                               const StepBudget& may_continue) override;
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
@@ -166,13 +168,24 @@ class ExactFem final : public DeformationEngine {
   void update_whole_field();
   void update_skin_field();
   void accumulate_field();
-  EngineStepStats solve_probe(const ProbeCollider* probe);
-  EngineStepStats step_frictionless(const ProbeCollider& probe);
+  EngineStepStats solve_probe(const ProbeCollider* probe, const StepBudget& may_continue);
+  EngineStepStats step_frictionless(const ProbeCollider& probe, const StepBudget& may_continue);
   // Under a budget: whether `node` lacks Green's functions and so is not held this frame (marks
   // it deferred).
   bool defers(int node);
-  // One round of the frictionless active set on rows_; true when the set or a plane changed.
-  bool update_active_set(const ProbeCollider& probe, bool skin_only);
+  // rows_ for a frictionless step's first round: the last step's contacts and the nodes now
+  // inside the probe.
+  void start_from_last_contacts(const ProbeCollider& probe);
+  // The next frictionless step starts from the nodes inside the probe only.
+  void forget_contacts();
+  // What one round of the frictionless active set did to rows_.
+  struct ActiveSetChange {
+    bool released = false;     // let nodes go that the probe pulled
+    bool reprojected = false;  // moved the plane of nodes that slid off the probe's curved rim
+    bool taken_in = false;     // held nodes that ended up inside the probe
+    bool any() const { return released || reprojected || taken_in; }
+  };
+  ActiveSetChange update_active_set(const ProbeCollider& probe, bool skin_only);
   void update_deformed();
 
   ExactFemSettings settings_;
@@ -212,7 +225,10 @@ class ExactFem final : public DeformationEngine {
   std::vector<int> node_constrained_index_;     // per node: index in row_nodes_, or −1
   std::vector<NodeContact> contacts_;
   std::vector<std::uint8_t> in_contact_;  // per node, within a frame's active-set rounds
-  std::vector<std::uint8_t> released_;    // per node: let go once this frame
+  std::vector<std::uint8_t> released_;    // per node: let go (once a frame; see still_let_go_)
+  std::vector<int> last_contacts_;        // nodes the last frictionless step ended holding
+  std::vector<int> still_let_go_;         // let go, and still only on the probe's surface
+  bool rounds_unfinished_ = false;        // it ran out of time: released_ carries over
   std::vector<std::uint8_t> deferred_;    // per node: not held this frame (no Green's functions)
   bool defer_uncached_ = false;           // inside step_within() with a budget
   Eigen::MatrixXd capacitance_;
