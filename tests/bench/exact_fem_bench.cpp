@@ -3,10 +3,13 @@
 // on 1 and 2 threads. Set-up (factorisation and the skin's Green's functions) happens once per
 // size outside the timed loop; its time is printed as a counter.
 //   build/ci/tests/bench/exact_fem_bench --benchmark_repetitions=3
+//   build/ci/tests/bench/exact_fem_bench --benchmark_filter=ContactRounds --benchmark_repetitions=3
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <memory>
 
@@ -82,6 +85,54 @@ BENCHMARK(BM_ExactFemSlidingLinearProbe)
     ->Args({25, 9, 19, 2})
     ->Args({37, 9, 28, 1})  // the default case's mesh
     ->Args({37, 9, 28, 2})
+    ->Unit(benchmark::kMillisecond);
+
+// Frictionless contact rounds with and without the last frame's contact set (the mean frame
+// time, the slowest frame, rounds a frame): a probe tilted
+// 0.15 rad, 3 mm into the skin, sweeping ±5 mm and back every 4 s (slow at its ends, as a
+// trainee's). carried = 0 is the reference: each frame forgets the last one's contacts (the
+// field is set to itself, as a live switch does) and starts from the nodes on the probe, as
+// every frame did before the set was carried over. One sweep untimed first: the Green's
+// functions of the non-skin nodes the press holds are solved for and cached there.
+void BM_ExactFemContactRounds(benchmark::State& state) {
+  Problem& p = problem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)),
+                       static_cast<int>(state.range(2)), static_cast<int>(state.range(3)));
+  const bool carried = state.range(4) != 0;
+  constexpr int kSweepFrames = 240;
+  const Eigen::Quaterniond tilt(Eigen::AngleAxisd(0.15, Eigen::Vector3d::UnitY()));
+  int frame = 0;
+  const auto step = [&] {
+    const double x =
+        5.0 * std::sin(2.0 * std::acos(-1.0) * (frame++ % kSweepFrames) / kSweepFrames);
+    const auto probe =
+        sim::ProbeCollider::linear_face(Eigen::Vector3d(x, 0.3, 3.0), tilt, 38.0, 10.0, 2.0);
+    if (!carried) p.fem->set_displacements_mm(p.fem->displacements_mm());
+    return p.fem->step(&probe, 1.0 / 60.0);
+  };
+  for (int i = 0; i < kSweepFrames; ++i) step();
+  std::int64_t rounds = 0, frames = 0, most_rounds = 0;
+  double slowest_ms = 0.0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    const auto stats = step();
+    slowest_ms =
+        std::max(slowest_ms,
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                     .count());
+    rounds += stats.iterations;
+    most_rounds = std::max<std::int64_t>(most_rounds, stats.iterations);
+    ++frames;
+  }
+  state.counters["rounds"] = static_cast<double>(rounds) / frames;
+  state.counters["most_rounds"] = static_cast<double>(most_rounds);
+  state.counters["slowest_ms"] = slowest_ms;
+}
+
+BENCHMARK(BM_ExactFemContactRounds)
+    ->ArgNames({"nx", "ny", "nz", "threads", "carried"})
+    ->Args({37, 9, 28, 2, 0})  // the default case's mesh
+    ->Args({37, 9, 28, 2, 1})
+    ->Iterations(480)
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace
