@@ -95,10 +95,9 @@ class DeformationEngine {
   // only while there is time (else it keeps the frame's start); the exact FEM stops its
   // frictionless contact rounds (one at least; the next frame carries on from its set) and does
   // not hold nodes whose Green's functions it has not got (each costs a full solve, more than a
-  // frame has); a
-  // stitched volume leaves the sub-volumes the probe does not touch for later. Methods with no such
-  // work ignore the budget. An empty may_continue: exactly step(). Does not allocate (nor does the
-  // budget, if it fits std::function's local buffer: capture one pointer).
+  // frame has); a stitched volume leaves the sub-volumes the probe does not touch for later.
+  // Methods with no such work ignore the budget. An empty may_continue: exactly step(). Does not
+  // allocate (nor does the budget, if it fits std::function's local buffer: capture one pointer).
   virtual EngineStepStats step_within(const ProbeCollider* probe, double frame_dt_s,
                                       const StepBudget& may_continue) {
     (void)may_continue;

@@ -173,10 +173,10 @@ class ExactFem final : public DeformationEngine {
   // Under a budget: whether `node` lacks Green's functions and so is not held this frame (marks
   // it deferred).
   bool defers(int node);
-  // rows_ for a frictionless step's first round: the last step's contacts and the nodes now
-  // inside the probe.
+  // rows_ for a frictionless step's first round: the last step's contacts and the nodes now on
+  // or inside the probe (less those let go that are still only on its surface).
   void start_from_last_contacts(const ProbeCollider& probe);
-  // The next frictionless step starts from the nodes inside the probe only.
+  // The next frictionless step starts from the nodes on or inside the probe only.
   void forget_contacts();
   // What one round of the frictionless active set did to rows_.
   struct ActiveSetChange {
