@@ -88,12 +88,12 @@ BENCHMARK(BM_ExactFemSlidingLinearProbe)
     ->Unit(benchmark::kMillisecond);
 
 // Frictionless contact rounds with and without the last frame's contact set (the mean frame
-// time, the slowest frame, rounds a frame): a probe tilted
-// 0.15 rad, 3 mm into the skin, sweeping ±5 mm and back every 4 s (slow at its ends, as a
-// trainee's). carried = 0 is the reference: each frame forgets the last one's contacts (the
-// field is set to itself, as a live switch does) and starts from the nodes on the probe, as
-// every frame did before the set was carried over. One sweep untimed first: the Green's
-// functions of the non-skin nodes the press holds are solved for and cached there.
+// time, the slowest frame, rounds a frame): a probe tilted 0.15 rad, 3 mm into the skin, sweeping
+// ±5 mm and back every 4 s (slow at its ends, as a trainee's). carried = 0 is the reference: each
+// frame forgets the last one's contacts (the field is set to itself, as a live switch does) and
+// starts from the nodes on the probe, as every frame did before the set was carried over. One sweep
+// untimed first: the Green's functions of the non-skin nodes the press holds are solved for and
+// cached there.
 void BM_ExactFemContactRounds(benchmark::State& state) {
   Problem& p = problem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)),
                        static_cast<int>(state.range(2)), static_cast<int>(state.range(3)));

@@ -527,6 +527,11 @@ EngineStepStats ExactFem::step_frictionless(const ProbeCollider& probe,
   return out;
 }
 
+ExactFem::Row ExactFem::tangent_plane_row(int node, const Eigen::Vector3d& point_mm,
+                                          const Eigen::Vector3d& normal) const {
+  return {node, normal, normal.dot(point_mm - rest_[node])};
+}
+
 void ExactFem::forget_contacts() {
   last_contacts_.clear();
   std::fill(released_.begin(), released_.end(), 0);
@@ -541,7 +546,7 @@ void ExactFem::start_from_last_contacts(const ProbeCollider& probe) {
   std::fill(in_contact_.begin(), in_contact_.end(), 0);
   for (int node : last_contacts_) {
     const SurfacePoint surface = probe.closest_surface_point(deformed_[node]);
-    rows_.push_back({node, surface.normal, surface.normal.dot(surface.point_mm - rest_[node])});
+    rows_.push_back(tangent_plane_row(node, surface.point_mm, surface.normal));
     in_contact_[node] = 1;
   }
   // And the nodes on or inside it now, but for those let go before that are still only on its
@@ -555,7 +560,7 @@ void ExactFem::start_from_last_contacts(const ProbeCollider& probe) {
       still_let_go_.push_back(c.node);
       continue;
     }
-    rows_.push_back({c.node, c.normal, c.normal.dot(c.target_mm - rest_[c.node])});
+    rows_.push_back(tangent_plane_row(c.node, c.target_mm, c.normal));
     in_contact_[c.node] = 1;
   }
   if (!rounds_unfinished_) {
@@ -585,8 +590,7 @@ ExactFem::ActiveSetChange ExactFem::update_active_set(const ProbeCollider& probe
     const Eigen::Vector3d& p = deformed_[node];
     const SurfacePoint surface = probe.closest_surface_point(p);
     if (std::abs((p - surface.point_mm).dot(surface.normal)) > kSurfaceToleranceMm) {
-      row.direction = surface.normal;
-      row.value_mm = surface.normal.dot(surface.point_mm - rest_[node]);
+      row = tangent_plane_row(node, surface.point_mm, surface.normal);
       change.reprojected = true;
     }
   }
@@ -597,7 +601,7 @@ ExactFem::ActiveSetChange ExactFem::update_active_set(const ProbeCollider& probe
     const SurfacePoint surface = probe.closest_surface_point(deformed_[node]);
     if ((deformed_[node] - surface.point_mm).dot(surface.normal) < -kSurfaceToleranceMm) {
       in_contact_[node] = 1;
-      rows_.push_back({node, surface.normal, surface.normal.dot(surface.point_mm - rest_[node])});
+      rows_.push_back(tangent_plane_row(node, surface.point_mm, surface.normal));
       change.taken_in = true;
     }
   };

@@ -173,6 +173,10 @@ class ExactFem final : public DeformationEngine {
   // Under a budget: whether `node` lacks Green's functions and so is not held this frame (marks
   // it deferred).
   bool defers(int node);
+  // The frictionless row holding `node` on the probe's tangent plane at `point_mm` (normal ·
+  // u = normal · (point − rest)).
+  Row tangent_plane_row(int node, const Eigen::Vector3d& point_mm,
+                        const Eigen::Vector3d& normal) const;
   // rows_ for a frictionless step's first round: the last step's contacts and the nodes now on
   // or inside the probe (less those let go that are still only on its surface).
   void start_from_last_contacts(const ProbeCollider& probe);
