@@ -134,7 +134,8 @@ void Session::switch_method(sim::EngineKind method) {
   }
   engine_ = slot.get();
   stitched_ = dynamic_cast<sim::StitchedVolume*>(engine_);
-  refused_press_.reset();  // another method may take the press
+  refused_press_.reset();         // another method may take the press
+  sim_budget_.forget_measures();  // another method's pieces and tail are not these
 }
 
 std::optional<sim::ProbeCollider> Session::probe_collider(
@@ -226,32 +227,26 @@ FrameOutcome Session::simulate(const std::optional<hal::PoseSample>& sample,
   }
   const std::optional<sim::ProbeCollider> collider = probe_collider(pressing);
   const sim::ProbeCollider* probe = collider ? &*collider : nullptr;
-  // The method's work that can wait (CG iterations, sub-volumes the probe does not touch) goes
-  // on only while a piece as long as the last still ends by the deadline (the first is measured
-  // with the frame's work before it, which can only overestimate it). A stitched method shares
-  // the time left over its seam exchanges and their batches itself (step_sharing).
-  struct BatchClock {
-    const hal::Clock& clock;
-    hal::TimestampUs deadline_us;
-    hal::TimestampUs last_call_us;
-    bool may_start_another() {
-      const hal::TimestampUs now = clock.now_us();
-      const std::int64_t last_batch_us = now - last_call_us;
-      last_call_us = now;
-      return now + last_batch_us < deadline_us;
-    }
-  } batches{clock_, deadline_us, t0};
+  // The method's work that can wait (CG iterations, contact rounds, sub-volumes the probe does
+  // not touch) goes on only while a piece as long as the last still ends by the deadline, less
+  // what the method went on doing after its last frame's first "no" (sched::PieceBudget). A
+  // stitched method shares the time left over its seam exchanges and their batches, and keeps
+  // its batches' tails back, itself (step_sharing).
+  sim_budget_.start(t0, deadline_us,
+                    stitched_ == nullptr ? sched::PieceBudget::Memory::kTailAndPiece
+                                         : sched::PieceBudget::Memory::kNothing);
   // One pointer: small enough for std::function's local buffer, so no allocation per frame.
-  const auto time_left = [&batches] { return batches.may_start_another(); };
+  const auto time_left = [this] { return sim_budget_.may_start_another(); };
   const sim::StepBudget budget = deadline_us < 0 ? sim::StepBudget{} : sim::StepBudget{time_left};
   if (stitched_ != nullptr) {
     // The touched sub-volumes' batches share the time out (StitchedVolume::step_sharing).
-    const auto time_left_us = [&batches] { return batches.deadline_us - batches.clock.now_us(); };
+    const auto time_left_us = [this] { return sim_budget_.time_left_us(); };
     outcome.sim = stitched_->step_sharing(probe, frame_dt_s, budget, time_left_us);
     outcome.stitch = stitched_->last_stitch_stats();
   } else {
     outcome.sim = engine_->step_within(probe, frame_dt_s, budget);
   }
+  if (deadline_us >= 0) sim_budget_.finish();
   if (pose_) refused_press_.record(verdict_of(outcome.sim));
   // Contact means tissue nodes are held by the probe: only then does a scanner show an image.
   // A probe pressed where the method refused it is in contact whatever the tissue's held pose

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <limits>
 
 #include "tiny_case.hpp"
@@ -253,6 +254,40 @@ TEST_F(SessionTest, APastDeadlineCutsTheMethodsCgShortAndSaysSo) {
   const FrameOutcome full = on_time.simulate(pose_at(2.0));
   EXPECT_FALSE(full.sim.cut_short);
   EXPECT_GT(full.sim.iterations, 1);
+}
+
+// A clock on which every reading takes `tick_us`: the method's work between two of its budget's
+// questions is a piece of that length, and so is each reading after a "no".
+class TickingClock final : public hal::Clock {
+ public:
+  explicit TickingClock(hal::TimestampUs tick_us) : tick_us_(tick_us) {}
+  hal::TimestampUs now_us() const override { return now_us_.fetch_add(tick_us_) + tick_us_; }
+
+ private:
+  hal::TimestampUs tick_us_;
+  mutable std::atomic<hal::TimestampUs> now_us_{0};
+};
+
+// The implicit MSDS told no in its first step's CG still runs its second step, which asks once
+// more: past the deadline on the first frame, by it from the second (the tail kept back).
+TEST_F(SessionTest, TheMethodsWorkPastItsFirstNoIsKeptBackFromTheNextFrames) {
+  settings_.sim.method = sim::EngineKind::kMsdsImplicit;
+  constexpr hal::TimestampUs kTickUs = 100;
+  constexpr hal::TimestampUs kShareUs = 1000;
+  TickingClock clock(kTickUs);
+  Session session(tissue_, settings_, clock, jobs_);
+  for (int f = 0; f < 10; ++f) {
+    const hal::TimestampUs deadline = clock.now_us() + kShareUs;
+    const FrameOutcome outcome = session.simulate(pose_at(2.0 + 0.1 * f), deadline);
+    const hal::TimestampUs end = clock.now_us() - kTickUs;  // this reading's own tick is not work
+    ASSERT_TRUE(outcome.sim.cut_short) << "frame " << f;
+    if (f == 0) {
+      EXPECT_GT(end, deadline);
+    } else {
+      EXPECT_LE(end, deadline) << "frame " << f;
+      EXPECT_GE(outcome.sim.iterations, 2) << "frame " << f;  // one a step at least
+    }
+  }
 }
 
 // The tiny case on a 13 × 9 × 9 grid split in three along x: the stitchable methods run stitched,

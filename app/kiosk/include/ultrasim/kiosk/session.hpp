@@ -23,6 +23,7 @@
 #include "ultrasim/kiosk/tissue_case.hpp"
 #include "ultrasim/render/frame_input.hpp"
 #include "ultrasim/render/png_writer.hpp"
+#include "ultrasim/sched/piece_budget.hpp"
 #include "ultrasim/sim/engine.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 #include "ultrasim/sim/probe_collider.hpp"
@@ -165,6 +166,7 @@ class Session {
   std::optional<hal::PoseSample> tracked_pose_;               // last good sample
   std::optional<hal::PoseSample> pose_;  // tracked_pose_ pressed in by controls_.compression_mm
   RefusedPress refused_press_;  // where the tissue is pressed while its method refuses the probe
+  sched::PieceBudget sim_budget_{clock_};  // what the method's stoppable work asks (simulate)
   bool in_contact_ = false;
   bool image_shows_tissue_ = false;  // the held image was sliced in contact (matters when frozen)
   std::vector<std::uint8_t> bscan_;
