@@ -31,7 +31,9 @@
 
 #include "engine_scene.hpp"
 #include "engine_settings.hpp"
+#include "ultrasim/drivers/posix/monotonic_clock.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
+#include "ultrasim/sched/piece_budget.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
 namespace {
@@ -241,6 +243,83 @@ BENCHMARK(BM_Starved)
                     static_cast<int>(sim::EngineKind::kMsdsImplicit)},
                    {1, 12}})
     ->Unit(benchmark::kMillisecond);
+
+// The implicit MSDS under the kiosk's budget: each frame a share of `share_us` asked as the kiosk
+// asks it (sched::PieceBudget: a piece as long as the last must end by the deadline less what
+// the method went on doing past its last first "no"), on the default case's grid (37 × 9 × 28
+// nodes, 2 threads), in `steps` implicit steps a frame (the default 2), against the same method
+// unbudgeted (each step's CG to its tolerance), both with the kiosk's frictionless slip.
+// Errors relative, in the 2-norm over the field: error_moving, the mean over the press and
+// slide (frames 1-59); error_held_60, after 60 more frames with the probe held where the slide
+// ended (both runs at rest by then: what is left is another resting shape, not motion).
+// cg_iterations: mean a frame while moving; the time is ms a frame, held.
+//   build/ci/tests/bench/engine_budget_bench --benchmark_filter=ImplicitMsdsShare
+//       --benchmark_repetitions=3
+// `pieces`: the budget's (null: unbudgeted).
+void run_implicit_msds_frames(sim::DeformationEngine& engine, int first, int count,
+                              std::int64_t share_us, sched::PieceBudget* pieces,
+                              const sim::ProbeCollider* held, std::int64_t* iterations) {
+  static const drivers::posix::MonotonicClock clock;
+  const sim::StepBudget budget = [pieces] { return pieces->may_start_another(); };
+  for (int frame = first; frame < first + count; ++frame) {
+    const sim::ProbeCollider probe = held != nullptr ? *held : bench::probe_at(frame);
+    sim::EngineStepStats stats;
+    if (pieces == nullptr) {
+      stats = engine.step(&probe, bench::kFrameDtS);
+    } else {
+      const hal::TimestampUs start = clock.now_us();
+      pieces->start(start, start + share_us);
+      stats = engine.step_within(&probe, bench::kFrameDtS, budget);
+      pieces->finish();
+    }
+    if (iterations != nullptr) *iterations += stats.iterations;
+  }
+}
+
+void BM_ImplicitMsdsShare(benchmark::State& state) {
+  const std::int64_t share_us = state.range(0);
+  const bench::Block& b = bench::block(37, 9, 28);
+  drivers::posix::ThreadPool jobs(2);
+  sim::EngineSettings settings;
+  settings.msds.implicit_steps_per_frame = static_cast<int>(state.range(1));
+  auto engine = [&] {
+    return sim::make_engine(sim::EngineKind::kMsdsImplicit, b.mesh, b.materials, b.fixed, settings,
+                            b.skin, &jobs);
+  };
+  auto budgeted = engine();
+  auto unbudgeted = engine();
+  const drivers::posix::MonotonicClock clock;
+  sched::PieceBudget pieces(clock);
+  double moving_error = 0.0;
+  std::int64_t iterations = 0;
+  for (int frame = 0; frame < bench::kAccuracyFrames; ++frame) {
+    run_implicit_msds_frames(*budgeted, frame, 1, share_us, &pieces, nullptr, &iterations);
+    run_implicit_msds_frames(*unbudgeted, frame, 1, 0, nullptr, nullptr, nullptr);
+    if (frame > 0) {  // frame 0 presses 0 mm: nothing to compare
+      moving_error +=
+          relative_l2_error(budgeted->displacements_mm(), unbudgeted->displacements_mm());
+    }
+  }
+  const auto held = bench::probe_at(bench::kAccuracyFrames - 1);
+  run_implicit_msds_frames(*budgeted, 0, 60, share_us, &pieces, &held, nullptr);
+  run_implicit_msds_frames(*unbudgeted, 0, 60, 0, nullptr, &held, nullptr);
+  state.counters["error_held_60"] =
+      relative_l2_error(budgeted->displacements_mm(), unbudgeted->displacements_mm());
+  for (auto _ : state) {
+    run_implicit_msds_frames(*budgeted, 0, 1, share_us, &pieces, &held, nullptr);
+  }
+  state.counters["share_us"] = static_cast<double>(share_us);
+  state.counters["error_moving"] = moving_error / (bench::kAccuracyFrames - 1);
+  state.counters["cg_iterations"] =
+      static_cast<double>(iterations) / static_cast<double>(bench::kAccuracyFrames);
+}
+
+BENCHMARK(BM_ImplicitMsdsShare)
+    ->ArgNames({"share_us", "steps"})
+    ->ArgsProduct({{1500, 2500, 4000, 6000}, {2, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(20);
 
 // Every method is timed over the same frames: one slide across and back (40 frames), from where
 // the accuracy frames left the probe. A fixed count also runs each case once (with a minimum time

@@ -470,6 +470,9 @@ void MsdsEngine::size_buffers() {
   partial_a_.assign(chunks, 0.0);
   partial_b_.assign(chunks, 0.0);
   partial_c_.assign(chunks, 0.0);
+  partial_d_.assign(chunks, 0.0);
+  partial_e_.assign(chunks, 0.0);
+  partial_f_.assign(chunks, 0.0);
   partial_finite_.assign(chunks, 1);
   partial_runaway_.assign(chunks, 0);
 }
@@ -614,6 +617,7 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
       }
       position_.copy_from(position_frame_start_);
       velocity_.copy_from(velocity_frame_start_);
+      truncated_velocity_kept_ = false;
       sync_float_state();
       attempt = run_attempt(probe, dt / (1 << halvings), steps << halvings);
     }
@@ -625,6 +629,7 @@ EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
       // to the undeformed tissue.
       position_.copy_from(position_frame_start_);
       velocity_.assign_zero(node_count());
+      truncated_velocity_kept_ = false;
       sync_float_state();
       stats.recovery = Recovery::kKeptLastGood;
     } else {
@@ -752,6 +757,7 @@ MsdsEngine::StepResult MsdsEngine::advance(const ProbeCollider* probe, double dt
 }
 
 void MsdsEngine::reset_to_rest() {
+  truncated_velocity_kept_ = false;
   for (int i = 0; i < node_count(); ++i) position_.set(i, rest_[i]);
   velocity_.assign_zero(node_count());
   clear_contacts();
@@ -787,6 +793,7 @@ void MsdsEngine::set_displacements_mm(const Eigen::VectorXd& u_mm) {
     position_.set(i, rest_[i] + u);
   }
   velocity_.assign_zero(node_count());
+  truncated_velocity_kept_ = false;
   clear_contacts();
   sync_float_state();
   publish_state();

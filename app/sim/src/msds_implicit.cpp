@@ -76,25 +76,27 @@ void MsdsEngine::sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::V
 MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   const int n = node_count();
   const int chunks = node_chunk_count();
-  // v1 starts at v0 (the warm start), which is zero on every contact (held or released) and pinned
-  // node, so a neighbour's release in the pass below does not change what a node reads.
+  // The CG starts at v0 (the warm start) or, after a step the budget stopped, at that step's
+  // unfinished velocity; either is zero on every contact (held or released) and pinned node, so
+  // a neighbour's release in the pass below does not change what a node reads.
+  const bool kept_start = truncated_velocity_kept_;
   for_each_chunk(chunks, [&](int chunk) {
     bool moving = false;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      cg_velocity_[i] = velocity_[i];
-      moving = moving || !(velocity_[i].array() == 0.0).all();  // NaN counts as moving
+      if (!kept_start || held_[i] != 0 || pinned_[i] != 0) cg_velocity_[i] = velocity_[i];
+      moving = moving || !(cg_velocity_[i].array() == 0.0).all();  // NaN counts as moving
     }
     partial_a_[chunk] = moving ? 1.0 : 0.0;
   });
-  // From rest, A v0 = 0 and the warm-start residual is the right-hand side: the product is
-  // skipped. A step the budget cut short leaves the tissue at rest, so under the kiosk's budget
-  // most steps start there (the product was an eighth of a starved sub-volume's frame).
-  const bool from_rest = sum_partials(partial_a_, chunks) == 0.0;
-  // One pass per node: its forces, the contact release, its row of the system and the warm-start
-  // residual.
+  // From a zero start, A v0 = 0 and the start's residual is the right-hand side: the product is
+  // skipped (it was an eighth of a starved sub-volume's frame).
+  const bool from_zero = sum_partials(partial_a_, chunks) == 0.0;
+  // One pass per node: its forces, the contact release, its row of the system and the start's
+  // residual, with what a zero start would have (r = rhs) and the step's energy at the start,
+  // E(v) = ½ vᵀA v − rhsᵀv = −½ vᵀ(rhs + r).
   for_each_chunk(chunks, [&](int chunk) {
-    double rhs_squared = 0.0, rz = 0.0, rr = 0.0;
+    double rhs_squared = 0.0, rz = 0.0, rr = 0.0, rz_zero = 0.0, energy = 0.0;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
       if (!pinned_[i]) {
@@ -109,14 +111,16 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
               Eigen::Vector3d::Constant(mass_kg_[i] + anchor_system_diagonal(i, dt_s)) +
               block_diagonal;
           inverse_diagonal_[i] = diagonal.cwiseInverse();
-          rhs_[i] = mass_kg_[i] * cg_velocity_[i] + dt_s * elastic;
-          r_[i] = from_rest ? rhs_[i]
+          rhs_[i] = mass_kg_[i] * velocity_[i] + dt_s * elastic;
+          r_[i] = from_zero ? rhs_[i]
                             : Eigen::Vector3d(rhs_[i] - system_row_times(i, cg_velocity_, dt_s));
           z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
           p_[i] = z_[i];
           rhs_squared += rhs_[i].squaredNorm();
           rz += r_[i].dot(z_[i]);
           rr += r_[i].squaredNorm();
+          rz_zero += rhs_[i].dot(inverse_diagonal_[i].cwiseProduct(rhs_[i]));
+          energy -= 0.5 * cg_velocity_[i].dot(rhs_[i] + r_[i]);
           continue;
         }
       }
@@ -130,10 +134,32 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     partial_a_[chunk] = rz;
     partial_b_[chunk] = rr;
     partial_c_[chunk] = rhs_squared;
+    partial_d_[chunk] = rz_zero;
+    partial_e_[chunk] = energy;
   });
   const double reference = std::sqrt(sum_partials(partial_c_, chunks));  // ‖rhs‖
   double rz = sum_partials(partial_a_, chunks);
   double residual = std::sqrt(sum_partials(partial_b_, chunks));
+  // A stopped step's velocity is kept as a start only where the step's energy there is below a
+  // zero start's (0): the CG lowers the energy from its start, so a step stopped again is still
+  // a descent on it from rest, which cannot pump energy into the tissue (as from zero), yet goes
+  // on from where the last step got to (from zero every step, a few iterations each, the
+  // tissue's smooth modes never settled under a held probe: 0.62-0.70 of the field off its rest
+  // state after 60 frames at 0-16 iterations a frame, engine_budget_bench).
+  if (kept_start && !from_zero && !(sum_partials(partial_e_, chunks) < 0.0)) {
+    for_each_chunk(chunks, [&](int chunk) {
+      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
+      for (int i = chunk * kNodesPerChunk; i < end; ++i) {
+        if (!moves(i)) continue;
+        cg_velocity_[i].setZero();
+        r_[i] = rhs_[i];
+        z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
+        p_[i] = z_[i];
+      }
+    });
+    rz = sum_partials(partial_d_, chunks);
+    residual = reference;
+  }
   int iteration = 0;
   bool truncated = false;
   // Relative to the right-hand side, with a floor: near a static state the right-hand side is
@@ -183,6 +209,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     ++iteration;
   }
   StepResult result = finish_implicit_update(dt_s, truncated);
+  truncated_velocity_kept_ = truncated;
   result.cg_iterations = iteration;
   result.cg_relative_residual = reference > 0.0 ? residual / reference : 0.0;
   return result;

@@ -24,9 +24,10 @@ struct Frame {
 // `steps` steps, each: its fixed work, one iteration always, then iterations while the budget
 // says yes (at most `max_iterations` a step), then its finish. As MsdsEngine's implicit step.
 Frame run_steps(hal::ManualClock& clock, PieceBudget& budget, int steps, int max_iterations = 50,
-                PieceBudget::Memory memory = PieceBudget::Memory::kTailAndPiece) {
+                PieceBudget::Memory memory = PieceBudget::Memory::kTailAndPiece,
+                std::int64_t share_us = kDeadlineUs) {
   const hal::TimestampUs start = clock.now_us();
-  budget.start(start, start + kDeadlineUs, memory);
+  budget.start(start, start + share_us, memory);
   Frame frame;
   for (int s = 0; s < steps; ++s) {
     clock.advance_us(kFixedUs);
@@ -110,6 +111,21 @@ TEST(PieceBudget, TheFirstQuestionTakesThePieceLastMeasuredNotTheWorkBeforeIt) {
   budget.start(clock.now_us(), clock.now_us() + 2000);
   clock.advance_us(kFixedUs + kIterationUs);
   EXPECT_TRUE(budget.may_start_another());
+}
+
+TEST(PieceBudget, WorkToldNoAtItsFirstQuestionLearnsItsPieceOnceOneFits) {
+  // 2500 µs: the first question comes after 1500 (fixed work and one iteration), and taken as a
+  // piece that does not fit again. Half of it does, and then the iterations are measured.
+  constexpr std::int64_t kShareUs = 2500;
+  hal::ManualClock clock;
+  PieceBudget budget(clock);
+  const auto kMemory = PieceBudget::Memory::kTailAndPiece;
+  EXPECT_EQ(run_steps(clock, budget, 1, 50, kMemory, kShareUs).iterations, 1);
+  for (int f = 0; f < 5; ++f) {
+    const Frame frame = run_steps(clock, budget, 1, 50, kMemory, kShareUs);
+    EXPECT_EQ(frame.iterations, (kShareUs - kFixedUs - kFinishUs) / kIterationUs) << f;
+    EXPECT_LE(frame.took_us, kShareUs) << f;
+  }
 }
 
 TEST(PieceBudget, APieceAsLongAsTheLastMustEndByTheDeadline) {

@@ -42,7 +42,9 @@ class PieceBudget {
 
   // The work is done: what it did after its first "no" (if it was told one) is the tail kept
   // back from the next start's deadline, and its shortest piece the next first question's.
-  // Work told nothing leaves the last tail as it was; work that measured no piece, the piece.
+  // Work told nothing leaves the last tail as it was; work that measured no piece, the piece,
+  // but for work told no at its first question: half the piece that question took, so that a
+  // piece is measured again once one fits.
   void finish();
 
   std::int64_t time_left_us() const { return deadline_us_ - clock_.now_us(); }
@@ -64,6 +66,8 @@ class PieceBudget {
   // set-up) is not the piece the next first question is about.
   std::int64_t piece_us_ = -1;
   std::int64_t frame_piece_us_ = -1;
+  std::int64_t first_piece_us_ = 0;    // what this work's first question took its piece to be
+  bool first_said_no_ = false;         // this work's first question
   hal::TimestampUs first_no_us_ = -1;  // -1: not told no since start()
   std::int64_t tail_us_ = 0;
   Memory memory_ = Memory::kTailAndPiece;
