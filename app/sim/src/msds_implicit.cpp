@@ -33,7 +33,9 @@ using msds_detail::kSpringsPerChunk;
 // step behind) the gap between two sub-volumes' copies grew several-fold a frame (the large case
 // under the kiosk's budget: seams 73 mm open, 394 of 571 frames refused, 3.5 kN at the probe).
 // From rest, a truncated step is a descent on the step's energy and cannot pump it; soft tissue
-// is overdamped, and the next steps' solves find the velocity again.
+// is overdamped, and the next steps' solves find the velocity again. The unfinished velocity is
+// kept as the next step's CG start (not its momentum) where it lowers that step's energy below a
+// zero start's, so a step stopped again is still such a descent (implicit_euler_update).
 
 void MsdsEngine::compute_spring_forces(double dt_s) {
   // Each spring once (its length and direction cost a square root and a division); the node
