@@ -472,7 +472,6 @@ void MsdsEngine::size_buffers() {
   partial_c_.assign(chunks, 0.0);
   partial_d_.assign(chunks, 0.0);
   partial_e_.assign(chunks, 0.0);
-  partial_f_.assign(chunks, 0.0);
   partial_finite_.assign(chunks, 1);
   partial_runaway_.assign(chunks, 0);
 }

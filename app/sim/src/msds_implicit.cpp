@@ -145,9 +145,10 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // A stopped step's velocity is kept as a start only where the step's energy there is below a
   // zero start's (0): the CG lowers the energy from its start, so a step stopped again is still
   // a descent on it from rest, which cannot pump energy into the tissue (as from zero), yet goes
-  // on from where the last step got to (from zero every step, a few iterations each, the
-  // tissue's smooth modes never settled under a held probe: 0.62-0.70 of the field off its rest
-  // state after 60 frames at 0-16 iterations a frame, engine_budget_bench).
+  // on from where the last step got to. From zero every step, a few iterations each, the smooth
+  // part of a press hardly moved: under the kiosk's 4 ms share the field stayed 0.71-0.74 off
+  // the unbudgeted run's while the probe slid, 0.21-0.23 going on (engine_budget_bench,
+  // ImplicitMsdsShare).
   if (kept_start && !from_zero && !(sum_partials(partial_e_, chunks) < 0.0)) {
     for_each_chunk(chunks, [&](int chunk) {
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);

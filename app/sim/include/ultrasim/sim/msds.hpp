@@ -441,7 +441,7 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<SpringForceAlong> spring_force_along_;
   std::vector<ImplicitSpringBlock> spring_block_;
   std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
-  std::vector<double> partial_a_, partial_b_, partial_c_, partial_d_, partial_e_, partial_f_;
+  std::vector<double> partial_a_, partial_b_, partial_c_, partial_d_, partial_e_;
   std::vector<std::uint8_t> partial_finite_, partial_runaway_;
   // The last implicit step's CG was stopped by the budget: its unfinished velocity (still in
   // cg_velocity_) is the next step's CG start where it lowers that step's energy
