@@ -212,7 +212,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     ++iteration;
   }
   StepResult result = finish_implicit_update(dt_s, truncated);
-  truncated_velocity_kept_ = truncated;
+  truncated_velocity_kept_ = truncated && settings_.continue_stopped_steps;
   result.cg_iterations = iteration;
   result.cg_relative_residual = reference > 0.0 ? residual / reference : 0.0;
   return result;

@@ -191,6 +191,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
     settings.msds.steps_per_frame /= parts;
     settings.msds.implicit_steps_per_frame =
         std::max(1, settings.msds.implicit_steps_per_frame / parts);
+    settings.msds.continue_stopped_steps = false;
     settings.fem.pcg_iterations_per_frame =
         std::max(1, settings.fem.pcg_iterations_per_frame / parts);
     settings.corotational.pcg_iterations_per_frame =
