@@ -577,6 +577,22 @@ TEST(StitchedVolume, AFrameNothingOfWhichKeepsWithNothingInReachPutsTheRegionToR
   }
 }
 
+// An implicit MSDS in one piece starts the step after one the budget stopped from that step's
+// velocity (StepBudget.ImplicitMsdsGoesOnFromWhereItsStoppedStepGot); stitched sub-volumes do not:
+// the product it costs a step made the large case's stitched frames late (docs/benchmarks.md).
+TEST(StitchedVolume, ImplicitMsdsSubVolumesDoNotGoOnFromAStoppedStep) {
+  const Region r = make_region({16, 8, 6});
+  hal::InlineJobSystem jobs;
+  StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, EngineSettings{},
+                          StitchingSettings{.sub_volumes = {2, 1, 1}}, &jobs);
+  ASSERT_TRUE(EngineSettings{}.msds.continue_stopped_steps);
+  for (int s = 0; s < stitched.sub_volume_count(); ++s) {
+    const auto* msds = dynamic_cast<const MsdsEngine*>(&stitched.sub_volume_engine(s));
+    ASSERT_NE(msds, nullptr);
+    EXPECT_FALSE(msds->settings().continue_stopped_steps) << "sub-volume " << s;
+  }
+}
+
 // A sub-volume is in the probe's reach when one of its nodes is within the margin (0.5 mm) of the
 // probe, not when one of the blocks the reach test first bounds is: a block is several
 // millimetres across (here 6 mm, its centre 3 mm under the skin), and counted alone it made a
