@@ -20,6 +20,8 @@ bool PieceBudget::may_start_another() {
   const hal::TimestampUs now = clock_.now_us();
   const std::int64_t since_last_us = now - last_question_us_;
   last_question_us_ = now;
+  const bool first = !asked_;
+  asked_ = true;
   // Only the work after a "yes" is a piece: after a "no" it is the tail (an implicit MSDS's next
   // step, taken as a piece, told the next frame's first question no).
   if (last_said_yes_) {
@@ -28,18 +30,16 @@ bool PieceBudget::may_start_another() {
   }
   // The first question: no longer than the work so far (one slow piece, a hiccup, told the next
   // frames no at their first question).
-  const bool remembered = !asked_ && piece_us_ >= 0 && memory_ == Memory::kTailAndPiece;
+  const bool remembered = first && piece_us_ >= 0 && memory_ == Memory::kTailAndPiece;
   const std::int64_t last_piece_us =
       remembered ? std::min(piece_us_, since_last_us) : since_last_us;
-  const bool asked_before = asked_;
-  if (!asked_) first_piece_us_ = last_piece_us;
-  asked_ = true;
+  if (first) first_piece_us_ = last_piece_us;
   const std::int64_t kept_back_us = memory_ == Memory::kTailAndPiece ? tail_us_ : 0;
   // A piece that would end on the deadline fits; none starts once it is reached.
   last_said_yes_ = now < deadline_us_ && now + last_piece_us + kept_back_us <= deadline_us_;
   if (!last_said_yes_ && first_no_us_ < 0) {
     first_no_us_ = now;
-    first_said_no_ = !asked_before;
+    first_said_no_ = first;
   }
   return last_said_yes_;
 }

@@ -86,7 +86,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     bool moving = false;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      if (!kept_start || held_[i] != 0 || pinned_[i] != 0) cg_velocity_[i] = velocity_[i];
+      if (!kept_start || !moves(i)) cg_velocity_[i] = velocity_[i];
       moving = moving || !(cg_velocity_[i].array() == 0.0).all();  // NaN counts as moving
     }
     partial_a_[chunk] = moving ? 1.0 : 0.0;
@@ -94,9 +94,11 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // From a zero start, A v0 = 0 and the start's residual is the right-hand side: the product is
   // skipped (it was an eighth of a starved sub-volume's frame).
   const bool from_zero = sum_partials(partial_a_, chunks) == 0.0;
+  // A kept start is tested below against a zero one.
+  const bool test_kept_start = kept_start && !from_zero;
   // One pass per node: its forces, the contact release, its row of the system and the start's
-  // residual, with what a zero start would have (r = rhs) and the step's energy at the start,
-  // E(v) = ½ vᵀA v − rhsᵀv = −½ vᵀ(rhs + r).
+  // residual; for a kept start, what a zero start would have (r = rhs) and the step's energy at
+  // the start, E(v) = ½ vᵀA v − rhsᵀv = −½ vᵀ(rhs + r).
   for_each_chunk(chunks, [&](int chunk) {
     double rhs_squared = 0.0, rz = 0.0, rr = 0.0, rz_zero = 0.0, energy = 0.0;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
@@ -121,8 +123,10 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
           rhs_squared += rhs_[i].squaredNorm();
           rz += r_[i].dot(z_[i]);
           rr += r_[i].squaredNorm();
-          rz_zero += rhs_[i].dot(inverse_diagonal_[i].cwiseProduct(rhs_[i]));
-          energy -= 0.5 * cg_velocity_[i].dot(rhs_[i] + r_[i]);
+          if (test_kept_start) {
+            rz_zero += rhs_[i].dot(inverse_diagonal_[i].cwiseProduct(rhs_[i]));
+            energy -= 0.5 * cg_velocity_[i].dot(rhs_[i] + r_[i]);
+          }
           continue;
         }
       }
@@ -149,7 +153,7 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // part of a press hardly moved: under the kiosk's 4 ms share the field stayed 0.71-0.74 off
   // the unbudgeted run's while the probe slid, 0.21-0.23 going on (engine_budget_bench,
   // ImplicitMsdsShare).
-  if (kept_start && !from_zero && !(sum_partials(partial_e_, chunks) < 0.0)) {
+  if (test_kept_start && !(sum_partials(partial_e_, chunks) < 0.0)) {
     for_each_chunk(chunks, [&](int chunk) {
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
       for (int i = chunk * kNodesPerChunk; i < end; ++i) {
