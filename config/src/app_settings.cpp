@@ -269,9 +269,15 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "PCG FEM: seam exchanges per frame, each sub-volume's frame in this many parts, "
               "anchors refreshed between them (2: the seams narrower than with 1 in the same "
               "time)."));
-  t.add(field("msds_exchanges_per_frame", &S::msds_exchanges_per_frame, IntegerIn<int>{1, 64},
-              "MSDS (both): seam exchanges per frame; must divide [msds] steps_per_frame (1: "
-              "with 2 the implicit MSDS's frames in the large soak were slower)."));
+  t.add(field("explicit_msds_exchanges_per_frame", &S::explicit_msds_exchanges_per_frame,
+              IntegerIn<int>{1, 64},
+              "Explicit MSDS: seam exchanges per frame; must divide [msds] steps_per_frame (1: 2 "
+              "made the large case's seams no narrower)."));
+  t.add(field("implicit_msds_exchanges_per_frame", &S::implicit_msds_exchanges_per_frame,
+              IntegerIn<int>{1, 64},
+              "Implicit MSDS: seam exchanges per frame, one implicit step each at least; must "
+              "divide [msds] steps_per_frame (2: nearer one piece than 1; a frame without the "
+              "time for both runs one)."));
   t.add(field("corotational_exchanges_per_frame", &S::corotational_exchanges_per_frame,
               IntegerIn<int>{1, 64},
               "Corotational FEM: seam exchanges per frame (1: each part extracts rotations and "

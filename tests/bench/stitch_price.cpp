@@ -134,7 +134,8 @@ void frames_study(const Region& r, hal::JobSystem& jobs, bool quick, const std::
         stitching.selective = v.selective;
         stitching.split_overlap_stiffness = v.split_overlap_stiffness;
         stitching.exchanges_per_frame = v.exchanges_per_frame;
-        stitching.msds_exchanges_per_frame = v.exchanges_per_frame;
+        stitching.explicit_msds_exchanges_per_frame = v.exchanges_per_frame;
+        stitching.implicit_msds_exchanges_per_frame = v.exchanges_per_frame;
         stitching.coarse_correction = v.coarse_correction;
         stitching.fine_correction_iterations = v.fine_correction_iterations;
         stitching.seam_load_rate = v.seam_load_rate;

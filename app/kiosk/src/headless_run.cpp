@@ -482,6 +482,7 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       s.sub_volumes_stepped += outcome.stitch->sub_volumes_stepped;
       s.sub_volumes_deferred += outcome.stitch->sub_volumes_deferred;
       s.frames_deferring += outcome.stitch->sub_volumes_deferred > 0;
+      s.frames_in_fewer_exchanges += outcome.stitch->exchanges_left_out > 0;
       s.updates_held += outcome.stitch->updates_held;
       s.max_gap_mm = std::max(s.max_gap_mm, outcome.stitch->max_gap_mm);
     }

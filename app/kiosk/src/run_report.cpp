@@ -99,6 +99,7 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
       << ", \"sub_volumes_stepped\": " << r.stitching.sub_volumes_stepped
       << ", \"sub_volumes_deferred\": " << r.stitching.sub_volumes_deferred
       << ", \"frames_deferring\": " << r.stitching.frames_deferring
+      << ", \"frames_in_fewer_exchanges\": " << r.stitching.frames_in_fewer_exchanges
       << ", \"corotational_updates_held\": " << r.stitching.updates_held
       << ", \"max_gap_mm\": " << r.stitching.max_gap_mm << "},\n"
       << "  \"frames\": " << r.frames << ",\n"

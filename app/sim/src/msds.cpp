@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <utility>
 
 #include "model_checks.hpp"
 #include "msds_chunks.hpp"
@@ -51,7 +52,9 @@ using msds_detail::kNodePadding;
 using msds_detail::chunk_count;
 using msds_detail::kNodesPerChunk;
 using msds_detail::kSpringsPerChunk;
-constexpr int kMaxStepsPerFrame = 100000;  // steps << kMaxHalvings must fit an int
+// steps × kMaxFrameStretch << kMaxHalvings must fit an int.
+constexpr int kMaxStepsPerFrame = 100000;
+constexpr int kMaxFrameStretch = 64;
 // A node this close to the probe's surface (or inside it) is a contact: a node held on the surface
 // last step stays in contact while the probe stays.
 constexpr double kTouchToleranceMm = 1e-6;
@@ -590,15 +593,23 @@ EngineStepStats MsdsEngine::step_within(const ProbeCollider* probe, double frame
   return stats;
 }
 
+void MsdsEngine::stretch_next_frame(int frames) {
+  require(frames >= 1 && frames <= kMaxFrameStretch,
+          "stretch_next_frame: frames must be in [1, " + std::to_string(kMaxFrameStretch) + "]");
+  next_frame_stretch_ = frames;
+}
+
 EngineStepStats MsdsEngine::run_frame(const ProbeCollider* probe) {
+  const int stretch = std::exchange(next_frame_stretch_, 1);
   position_frame_start_.copy_from(position_);
   velocity_frame_start_.copy_from(velocity_);
   inverted_at_frame_start_ = -1;  // counted if a try goes over the limit
   // The frame's simulated time, steps × dt, in the explicit engine's steps or in fewer, larger
   // implicit ones.
   const bool implicit = integrator_ == MsdsIntegrator::kImplicitEuler;
-  const int steps = implicit ? settings_.implicit_steps_per_frame : settings_.steps_per_frame;
-  const double dt = settings_.time_step_s * settings_.steps_per_frame / steps;
+  const int steps =
+      implicit ? settings_.implicit_steps_per_frame : settings_.steps_per_frame * stretch;
+  const double dt = settings_.time_step_s * settings_.steps_per_frame * stretch / steps;
   EngineStepStats stats;
   AttemptResult attempt = run_attempt(probe, dt, steps);
   if (!attempt.accepted) {

@@ -21,14 +21,15 @@ void StitchedFrameTime::start_frame(const StepBudget& may_continue, const TimeLe
   may_continue_ = &may_continue;
   time_left_us_ = &time_left_us;
   shares_ = may_continue && time_left_us;
-  parts_ = parts;
+  const std::int64_t left_us =
+      shares_ ? std::max<std::int64_t>(time_left_us() - after_steps_us_, 0) : 0;
+  exchanges_ = shares_ ? exchanges_that_fit(left_us, parts, touched_batches) : parts;
   // Evenly over the frame's exchanges: the first plans its batches on its part and keeps the
   // others' back.
-  left_at_start_us_ =
-      shares_ ? std::max<std::int64_t>(time_left_us() - after_steps_us_, 0) / parts : 0;
-  later_parts_us_ = left_at_start_us_ * (parts - 1);
+  left_at_start_us_ = left_us / exchanges_;
+  later_parts_us_ = left_at_start_us_ * (exchanges_ - 1);
   const int batches_that_fit =
-      shares_ && batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us_ / batch_cost_us_) : 1;
+      shares_ && batch_cost_us_ > 0 ? static_cast<int>(left_at_start_us_ / least_batch_us()) : 1;
   due_batches_ = std::max(
       1, touched_batches + std::clamp(batches_that_fit - touched_batches, 0, other_batches));
   frame_batch_cost_us_ = 0;
@@ -37,19 +38,33 @@ void StitchedFrameTime::start_frame(const StepBudget& may_continue, const TimeLe
   frame_batch_tail_us_ = -1;
 }
 
+int StitchedFrameTime::exchanges_that_fit(std::int64_t left_us, int parts,
+                                          int touched_batches) const {
+  // A batch's least work: up to its first question, then what it goes on with after a "no".
+  if (batch_cost_us_ <= 0) return parts;  // nothing measured yet
+  for (int exchanges = parts; exchanges > 1; --exchanges) {
+    if (parts % exchanges == 0 &&
+        static_cast<std::int64_t>(touched_batches) * exchanges * least_batch_us() <= left_us) {
+      return exchanges;
+    }
+  }
+  return 1;
+}
+
 std::int64_t StitchedFrameTime::first_part_reserve_us(int b) const {
   const int batches_after = std::max(due_batches_ - 1 - b, 0);
   return after_steps_us_ + later_parts_us_ + left_at_start_us_ * batches_after / due_batches_;
 }
 
 void StitchedFrameTime::start_later_part(int part) {
-  part_us_ = shares_
-                 ? std::max<std::int64_t>((*time_left_us_)() - after_steps_us_, 0) / (parts_ - part)
-                 : 0;
+  part_us_ = shares_ ? std::max<std::int64_t>((*time_left_us_)() - after_steps_us_, 0) /
+                           (exchanges_ - part)
+                     : 0;
 }
 
 std::int64_t StitchedFrameTime::later_part_reserve_us(int part, int j, int batches) const {
-  return after_steps_us_ + part_us_ * (parts_ - part - 1) + part_us_ * (batches - 1 - j) / batches;
+  return after_steps_us_ + part_us_ * (exchanges_ - part - 1) +
+         part_us_ * (batches - 1 - j) / batches;
 }
 
 bool StitchedFrameTime::begin_batch(std::int64_t reserve_us) {
@@ -102,8 +117,8 @@ bool StitchedFrameTime::another_batch_fits(int batches_run) const {
   if (!*may_continue_) return true;
   if (!shares_) return (*may_continue_)();
   const std::lock_guard lock(clock_mutex_);
-  return (*time_left_us_)() >
-         (batches_run < due_batches_ ? 0 : batch_cost_us_) + after_steps_us_ + later_parts_us_;
+  return (*time_left_us_)() > (batches_run < due_batches_ ? 0 : least_batch_us() * exchanges_) +
+                                  after_steps_us_ + later_parts_us_;
 }
 
 bool StitchedFrameTime::update_batch_fits() const {

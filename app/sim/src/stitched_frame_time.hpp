@@ -23,20 +23,23 @@ class StitchedFrameTime {
   StitchedFrameTime(const StitchedFrameTime&) = delete;
   StitchedFrameTime& operator=(const StitchedFrameTime&) = delete;
 
-  // A frame of `parts` exchanges starts; its time is shared only when both the budget and the
-  // time left are given (they must outlive the frame). Plans the first exchange's batches: the
-  // touched ones and as many of the others as fit at the least batch cost last measured (at
-  // least one: a frame with nothing touched still shares its time among those that run).
+  // A frame of up to `parts` exchanges starts; its time is shared only when both the budget and
+  // the time left are given (they must outlive the frame). Sharing, it runs as many of them as
+  // its touched batches' least work fits in (exchanges(): a divisor of `parts`, 1 at least),
+  // and plans the first exchange's batches: the touched ones and as many of the others as fit at
+  // the least batch work last measured (at least one: a frame with nothing touched still shares
+  // its time among those that run).
   void start_frame(const StepBudget& may_continue, const TimeLeftUs& time_left_us, int parts,
                    int touched_batches, int other_batches);
   bool shares() const { return shares_; }
+  int exchanges() const { return exchanges_; }
   int due_batches() const { return due_batches_; }
 
   // What the first exchange's batch `b` keeps back from the time left: the later batches' shares,
   // the later exchanges' parts and the work after the steps.
   std::int64_t first_part_reserve_us(int b) const;
-  // The later exchange `part` (1 ≤ part < parts) starts: its part is what is left over the parts
-  // to go. What its batch j of `batches` keeps back.
+  // The later exchange `part` (1 ≤ part < exchanges()) starts: its part is what is left over the
+  // parts to go. What its batch j of `batches` keeps back.
   void start_later_part(int part);
   std::int64_t later_part_reserve_us(int part, int j, int batches) const;
 
@@ -52,7 +55,8 @@ class StitchedFrameTime {
   void end_batch(bool held_an_update, bool updated);
 
   // Whether another batch of the first exchange may start, `batches_run` having run: a planned
-  // one while time is left, a further one only if one at its least cost still ends in time.
+  // one while time is left, a further one only if its least work in every exchange still ends in
+  // time (the later exchanges step it too).
   bool another_batch_fits(int batches_run) const;
   // Whether a batch with a corotational update still ends in time (true until one was
   // measured).
@@ -65,6 +69,12 @@ class StitchedFrameTime {
 
  private:
   bool ask();  // batch_budget_'s
+  // A batch's least work as last measured: up to its first question, then what it went on with
+  // after a "no".
+  std::int64_t least_batch_us() const { return batch_cost_us_ + batch_tail_us_; }
+  // The most of `parts` exchanges (a divisor of it, 1 at least) in which `touched_batches`
+  // batches a part at their least work last measured end within `left_us`.
+  int exchanges_that_fit(std::int64_t left_us, int parts, int touched_batches) const;
 
   std::mutex& clock_mutex_;
   StepBudget batch_budget_;  // [this]: no allocation
@@ -82,7 +92,7 @@ class StitchedFrameTime {
   const StepBudget* may_continue_ = nullptr;
   const TimeLeftUs* time_left_us_ = nullptr;
   bool shares_ = false;
-  int parts_ = 1;
+  int exchanges_ = 1;
   int due_batches_ = 1;
   std::int64_t left_at_start_us_ = 0;  // the first exchange's part
   std::int64_t later_parts_us_ = 0;    // kept back for the later exchanges

@@ -4,9 +4,11 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "stitched_frame_time.hpp"
 #include "ultrasim/sim/corotational_fem.hpp"
+#include "ultrasim/sim/msds.hpp"
 
 namespace ultrasim::sim {
 
@@ -70,18 +72,22 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   if (stitching.corotational_update_turns_held < 0) {
     throw std::invalid_argument("StitchedVolume: corotational_update_turns_held must be >= 0");
   }
-  if (stitching.msds_exchanges_per_frame < 1 ||
-      engine_settings.msds.steps_per_frame % stitching.msds_exchanges_per_frame != 0) {
-    throw std::invalid_argument("StitchedVolume: msds_exchanges_per_frame (" +
-                                std::to_string(stitching.msds_exchanges_per_frame) +
-                                ") must be >= 1 and divide the MSDS's steps_per_frame (" +
-                                std::to_string(engine_settings.msds.steps_per_frame) + ")");
+  for (const auto& [name, exchanges] :
+       {std::pair{"explicit_msds_exchanges_per_frame", stitching.explicit_msds_exchanges_per_frame},
+        std::pair{"implicit_msds_exchanges_per_frame",
+                  stitching.implicit_msds_exchanges_per_frame}}) {
+    if (exchanges < 1 || engine_settings.msds.steps_per_frame % exchanges != 0) {
+      throw std::invalid_argument("StitchedVolume: " + std::string(name) + " (" +
+                                  std::to_string(exchanges) +
+                                  ") must be >= 1 and divide the MSDS's steps_per_frame (" +
+                                  std::to_string(engine_settings.msds.steps_per_frame) + ")");
+    }
   }
-  const bool msds = method == EngineKind::kMsdsExplicit || method == EngineKind::kMsdsImplicit;
-  exchanges_per_frame_ = msds ? stitching.msds_exchanges_per_frame
-                         : method == EngineKind::kCorotationalFem
-                             ? stitching.corotational_exchanges_per_frame
-                             : stitching.exchanges_per_frame;
+  exchanges_per_frame_ =
+      method == EngineKind::kMsdsExplicit      ? stitching.explicit_msds_exchanges_per_frame
+      : method == EngineKind::kMsdsImplicit    ? stitching.implicit_msds_exchanges_per_frame
+      : method == EngineKind::kCorotationalFem ? stitching.corotational_exchanges_per_frame
+                                               : stitching.exchanges_per_frame;
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   build_copies(tet_materials);
   if (settings_.coarse_correction) {
@@ -220,6 +226,7 @@ void StitchedVolume::build_sub_volumes(std::span<const Material> tet_materials,
       throw std::invalid_argument("StitchedVolume: " + sub_name(sub.box) + ": " + e.what());
     }
     sub.corotational = dynamic_cast<CorotationalFem*>(sub.engine.get());
+    sub.msds = dynamic_cast<MsdsEngine*>(sub.engine.get());
     if (!sub.engine->supports_anchor_springs()) {
       throw std::invalid_argument("StitchedVolume: " + std::string(sub.engine->name()) +
                                   " cannot be stitched (it takes no anchor springs); use pcg, "

@@ -56,7 +56,10 @@ void expect_same(const AppSettings& a, const AppSettings& b) {
   EXPECT_EQ(a.stitching.selective, b.stitching.selective);
   EXPECT_EQ(a.stitching.extra_sub_volumes_per_frame, b.stitching.extra_sub_volumes_per_frame);
   EXPECT_EQ(a.stitching.exchanges_per_frame, b.stitching.exchanges_per_frame);
-  EXPECT_EQ(a.stitching.msds_exchanges_per_frame, b.stitching.msds_exchanges_per_frame);
+  EXPECT_EQ(a.stitching.explicit_msds_exchanges_per_frame,
+            b.stitching.explicit_msds_exchanges_per_frame);
+  EXPECT_EQ(a.stitching.implicit_msds_exchanges_per_frame,
+            b.stitching.implicit_msds_exchanges_per_frame);
   EXPECT_EQ(a.stitching.corotational_exchanges_per_frame,
             b.stitching.corotational_exchanges_per_frame);
   EXPECT_EQ(a.corotational.rotation_update_tolerance, b.corotational.rotation_update_tolerance);
@@ -168,7 +171,8 @@ TEST(AppSettings, EveryFieldRoundTripsThroughFormat) {
   changed.stitching.selective = false;
   changed.stitching.extra_sub_volumes_per_frame = 3;
   changed.stitching.exchanges_per_frame = 4;
-  changed.stitching.msds_exchanges_per_frame = 3;
+  changed.stitching.explicit_msds_exchanges_per_frame = 3;
+  changed.stitching.implicit_msds_exchanges_per_frame = 5;
   changed.stitching.corotational_exchanges_per_frame = 2;
   changed.corotational.rotation_update_tolerance = 0.0025;
   changed.corotational.max_rotation_updates_fraction = 0.125;

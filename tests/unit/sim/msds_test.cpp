@@ -768,6 +768,37 @@ TEST(MsdsPress, ContactForceGrowsWithPressDepth) {
   }
 }
 
+// A stitched frame with no time for all its seam exchanges covers its time in fewer parts: a
+// frame stretched twofold is, to the bit, a frame of twice the simulated time (the implicit
+// integrator's steps twice as long, the explicit one's twice as many), and only the next frame
+// is stretched.
+TEST(MsdsFrame, AStretchedFrameIsAFrameOfThatManyTimesTheSimulatedTime) {
+  const Block b = make_block();
+  for (auto integrator : {kExplicit, kImplicit}) {
+    const MsdsSettings s =
+        integrator == kImplicit ? with_step(0.025, 4) : with_step(0.5 * explicit_bound_s(b), 10);
+    MsdsSettings twice = s;
+    twice.steps_per_frame *= 2;
+    MsdsEngine stretched = make_engine(b, integrator, s);
+    MsdsEngine long_frames = make_engine(b, integrator, twice);
+    const ProbeCollider probe = press(1.5);
+    stretched.stretch_next_frame(2);
+    const EngineStepStats a = stretched.step(&probe, 1.0 / 30);
+    const EngineStepStats c = long_frames.step(&probe, 1.0 / 30);
+    EXPECT_EQ(a.iterations, c.iterations);
+    EXPECT_TRUE(stretched.displacements_mm() == long_frames.displacements_mm())
+        << stretched.name() << ": max difference "
+        << (stretched.displacements_mm() - long_frames.displacements_mm()).cwiseAbs().maxCoeff();
+    if (integrator == kExplicit) {
+      EXPECT_EQ(a.iterations, 20);
+      EXPECT_EQ(stretched.step(&probe, 1.0 / 30).iterations, 10) << "the next frame only";
+    }
+  }
+  MsdsEngine engine = make_engine(b, kImplicit);
+  EXPECT_THROW(engine.stretch_next_frame(0), std::invalid_argument);
+  EXPECT_THROW(engine.stretch_next_frame(65), std::invalid_argument);
+}
+
 TEST(MsdsJobs, ResultsAreBitwiseIdenticalWithAndWithoutTwoThreads) {
   const Block b = make_block(30.0, {13, 9, 9});  // several node, spring and tet chunks
   ultrasim::testing::TwoThreadJobs jobs;

@@ -1,7 +1,8 @@
-// StitchedFrameTime on a manual clock: the first exchange's batches planned at the cost last
-// measured, each batch's reserve, the budget's "no" once a batch's share is spent and its tail
-// kept back the next frame, the corotational updates held where a share covers no more than a
-// batch with an update took, and no sharing without the time left.
+// StitchedFrameTime on a manual clock: the exchanges the touched batches fit at their least
+// work, the first exchange's batches planned at the cost last measured, each batch's reserve, the
+// budget's "no" once a batch's share is spent and its tail kept back the next frame, the
+// corotational updates held where a share covers no more than a batch with an update took, and no
+// sharing without the time left.
 
 #include "../../../app/sim/src/stitched_frame_time.hpp"
 
@@ -34,6 +35,13 @@ class StitchedFrameTimeTest : public ::testing::Test {
     time_.end_batch(false, updated);
   }
 
+  // The frame's steps end, and the work after them takes `after_us`.
+  void end_frame(std::int64_t after_us) {
+    time_.end_steps();
+    left_us_ -= after_us;
+    time_.end_frame();
+  }
+
   std::mutex mutex_;
   StitchedFrameTime time_{mutex_};
   std::int64_t left_us_ = 0;
@@ -59,12 +67,14 @@ TEST_F(StitchedFrameTimeTest, PlansTheBatchesThatFitAtTheCostLastMeasured) {
   // shares: 400 + 2800 + 2800 × 5 / 6.
   EXPECT_EQ(time_.first_part_reserve_us(0), 400 + 2800 + 2333);
   EXPECT_EQ(time_.first_part_reserve_us(5), 400 + 2800);
-  // A planned batch while time is left beyond what is kept back; a further one only if one at
-  // its least cost (300) still ends in time.
+  // A planned batch while time is left beyond what is kept back; a further one only if its
+  // least work (300) in both exchanges (the later one steps it too) still ends in time.
   left_us_ = 3400;
   EXPECT_TRUE(time_.another_batch_fits(2));
   EXPECT_FALSE(time_.another_batch_fits(6));
-  left_us_ = 3501;
+  left_us_ = 3800;
+  EXPECT_FALSE(time_.another_batch_fits(6));
+  left_us_ = 3801;
   EXPECT_TRUE(time_.another_batch_fits(6));
   // The later exchange's part: what is left less the work after the steps, over the parts to go;
   // its first batch of two keeps back the second's half.
@@ -72,6 +82,37 @@ TEST_F(StitchedFrameTimeTest, PlansTheBatchesThatFitAtTheCostLastMeasured) {
   time_.start_later_part(1);
   EXPECT_EQ(time_.later_part_reserve_us(1, 0, 2), 400 + 1000);
   EXPECT_EQ(time_.later_part_reserve_us(1, 1, 2), 400);
+}
+
+TEST_F(StitchedFrameTimeTest, RunsTheExchangesItsTouchedBatchesFitAtTheirLeastWork) {
+  start_frame(6000, 2, 1, 0);
+  EXPECT_EQ(time_.exchanges(), 2) << "no batch measured yet";
+  // A batch told no at its first question, 300 µs in, that went on 200 µs: its least work is 500.
+  run_batch(5700, 300, 200);
+  end_frame(400);  // the work after the steps
+
+  // Three touched batches in two exchanges at 500 each, and the 400 after them: 3400 µs.
+  start_frame(3400, 2, 3, 4);
+  EXPECT_EQ(time_.exchanges(), 2);
+  EXPECT_EQ(time_.due_batches(), 3) << "(3400 - 400) / 2 = 1500 µs an exchange: three at 500";
+  EXPECT_EQ(time_.first_part_reserve_us(0), 400 + 1500 + 1000);
+  end_frame(400);
+  // A microsecond less: one exchange, planned on the whole 2999 µs (five batches at 500).
+  start_frame(3399, 2, 3, 4);
+  EXPECT_EQ(time_.exchanges(), 1);
+  EXPECT_EQ(time_.due_batches(), 5);
+  EXPECT_EQ(time_.first_part_reserve_us(4), 400);
+  end_frame(400);
+  // Of four, the most that divide them and fit: two; one at least, whatever the time.
+  start_frame(3400, 4, 3, 0);
+  EXPECT_EQ(time_.exchanges(), 2);
+  end_frame(400);
+  start_frame(100, 4, 3, 0);
+  EXPECT_EQ(time_.exchanges(), 1);
+  end_frame(400);
+  // Nothing touched: every exchange.
+  start_frame(500, 4, 0, 3);
+  EXPECT_EQ(time_.exchanges(), 4);
 }
 
 TEST_F(StitchedFrameTimeTest, ABatchHearsNoPastItsShareAndKeepsItsTailBackTheNextFrame) {

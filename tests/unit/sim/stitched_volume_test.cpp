@@ -717,7 +717,7 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   double error[2] = {0.0, 0.0};
   for (int i = 0; i < 2; ++i) {
     StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
-    stitching.msds_exchanges_per_frame = i == 0 ? 1 : 10;
+    stitching.implicit_msds_exchanges_per_frame = i == 0 ? 1 : 10;
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, stitching,
                             &jobs);
     for (int f = 0; f < 6; ++f) stitched.step(&probe, 1.0 / 60);
@@ -726,11 +726,11 @@ TEST(StitchedVolume, MoreSeamExchangesAFrameCloseOnOnePieceSooner) {
   }
   EXPECT_LT(error[1], 0.5 * error[0]) << error[0] << " with one exchange, " << error[1];
   StitchingSettings three{.sub_volumes = {2, 1, 1}};
-  three.msds_exchanges_per_frame = 3;  // does not divide the 20 MSDS steps of a frame
+  three.implicit_msds_exchanges_per_frame = 3;  // does not divide the 20 MSDS steps of a frame
   EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, three),
                std::invalid_argument);
   StitchingSettings none{.sub_volumes = {2, 1, 1}};
-  none.msds_exchanges_per_frame = 0;
+  none.explicit_msds_exchanges_per_frame = 0;
   EXPECT_THROW(StitchedVolume(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, {}, none),
                std::invalid_argument);
   StitchingSettings no_corotational{.sub_volumes = {2, 1, 1}};
@@ -1171,6 +1171,7 @@ TEST(StitchedVolume, ABatchKeepsBackWhatItDidAfterItsFirstNo) {
   hal::InlineJobSystem jobs;
   StitchingSettings stitching;
   stitching.sub_volumes = {4, 4, 1};
+  stitching.implicit_msds_exchanges_per_frame = 1;  // two implicit steps a part
   StitchedVolume v(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, EngineSettings{},
                    stitching, &jobs);
   std::int64_t left_us = 0;
@@ -1225,6 +1226,57 @@ TEST(StitchedVolume, TheLaterExchangesGetTheirShareOfTheTime) {
   EXPECT_GE(questions, 90) << "both exchanges iterated while the frame had time";
   EXPECT_EQ(noes, 1) << "the first exchange was stopped by its share, not by the frame's end";
   EXPECT_GE(left_us, -10);
+}
+
+// A frame whose touched batches' least work does not fit twice in its time runs one seam exchange
+// instead of two, and its MSDS sub-volumes cover the frame's time in it: to the bit the frame of
+// a volume of one exchange whose implicit step is the frame (the large case's six touched
+// sub-volumes took 3.4-3.6 ms at their least in the PCG FEM's two exchanges, and the work after
+// them 0.7 more, past the simulation's 4 ms on 99 of 571 frames). Each look at the clock costs
+// 1 µs, so a batch's least work is measured; with time, both exchanges run.
+TEST(StitchedVolume, AFrameWithoutTimeForItsExchangesCoversItsTimeInFewer) {
+  const Region r = make_region({16, 8, 6});
+  hal::InlineJobSystem jobs;
+  StitchingSettings two{.sub_volumes = {2, 1, 1}};
+  two.implicit_msds_exchanges_per_frame = 2;
+  StitchingSettings one = two;
+  one.implicit_msds_exchanges_per_frame = 1;
+  EngineSettings two_steps;  // one a part
+  two_steps.msds.implicit_steps_per_frame = 2;
+  EngineSettings one_step = two_steps;
+  one_step.msds.implicit_steps_per_frame = 1;
+  StitchedVolume split_in_two(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, two_steps,
+                              two, &jobs);
+  StitchedVolume split_once(r.grid, r.materials, r.fixed, EngineKind::kMsdsImplicit, one_step, one,
+                            &jobs);
+  std::int64_t left_us = 0;
+  const auto always = [] { return true; };
+  const auto time_left = [&left_us] { return left_us -= 1; };
+  const ProbeCollider probe = sphere_probe(14.0, 8.0, 1.5);  // on the seam: both touched
+  left_us = 1'000'000;
+  split_in_two.step_sharing(&probe, 1.0 / 60, always, time_left);
+  ASSERT_EQ(split_in_two.last_stitch_stats().sub_volumes_touched, 2);
+  EXPECT_EQ(split_in_two.last_stitch_stats().exchanges, 2) << "the time for both";
+  EXPECT_EQ(split_in_two.last_stitch_stats().exchanges_left_out, 0);
+  left_us = 1'000'000;
+  split_once.step_sharing(&probe, 1.0 / 60, always, time_left);
+  // From rest again, the costs measured: no time at all, one exchange of one step a sub-volume,
+  // one CG iteration each.
+  const Eigen::VectorXd rest = Eigen::VectorXd::Zero(split_once.displacements_mm().size());
+  split_in_two.set_displacements_mm(rest);
+  split_once.set_displacements_mm(rest);
+  left_us = 0;
+  const EngineStepStats a = split_in_two.step_sharing(&probe, 1.0 / 60, always, time_left);
+  EXPECT_EQ(split_in_two.last_stitch_stats().exchanges, 1);
+  EXPECT_EQ(split_in_two.last_stitch_stats().exchanges_left_out, 1);
+  left_us = 0;
+  const EngineStepStats b = split_once.step_sharing(&probe, 1.0 / 60, always, time_left);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.iterations, 2) << "one CG iteration a sub-volume";
+  EXPECT_GT(max_norm(split_in_two.displacements_mm()), 0.1) << "the frame pressed";
+  EXPECT_TRUE(split_in_two.displacements_mm() == split_once.displacements_mm())
+      << "max difference "
+      << max_difference(split_in_two.displacements_mm(), split_once.displacements_mm());
 }
 
 // Frames with nothing touched (the probe lifted) still step the awake sub-volumes, shared or not,
@@ -1511,7 +1563,7 @@ TEST(StitchedVolume, AFrameASubVolumeTookInSmallerStepsStandsAndSaysWhy) {
   for (const int exchanges : {1, 2}) {
     SCOPED_TRACE(exchanges);
     StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
-    stitching.msds_exchanges_per_frame = exchanges;
+    stitching.explicit_msds_exchanges_per_frame = exchanges;
     StitchedVolume stitched(r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit, settings,
                             stitching, &jobs);
     int substepped = 0;

@@ -52,6 +52,8 @@ struct StitchSummary {
   std::int64_t sub_volumes_stepped = 0;   // summed over the frames
   std::int64_t sub_volumes_deferred = 0;  // summed: due but left for later (selection or time)
   std::int64_t frames_deferring = 0;      // frames that left any due sub-volume for later
+  // Frames that ran fewer seam exchanges than the method's (no time for their least work).
+  std::int64_t frames_in_fewer_exchanges = 0;
   // Summed: corotational updates held for want of time (refused frames' too).
   std::int64_t updates_held = 0;
   double max_gap_mm = 0.0;  // largest gap between copies of a shared node

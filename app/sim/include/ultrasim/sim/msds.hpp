@@ -186,6 +186,13 @@ class MsdsEngine final : public DeformationEngine {
   void displace_free_nodes_mm(const Eigen::VectorXd& du_mm) override;
   void move_held_node_mm(int node, const Eigen::Vector3d& position_mm) override;
 
+  // The next frame (one step() or step_within()) integrates `frames` times the simulated time of
+  // one: the implicit integrator in its implicit_steps_per_frame steps, each that many times as
+  // long (stable at any step), the explicit one in that many times its steps. A stitched volume
+  // whose frame has no time for all its seam exchanges covers it in fewer, longer parts.
+  // Throws std::invalid_argument unless 1 <= frames <= 64.
+  void stretch_next_frame(int frames);
+
   // Runs `steps` integration steps of `dt_s` (with the probe's contact) and nothing else: no
   // divergence check, no recovery. For measuring stability limits in tests and benches.
   void integrate_unchecked(const ProbeCollider* probe, double dt_s, int steps);
@@ -274,6 +281,7 @@ class MsdsEngine final : public DeformationEngine {
   // step_within()'s budget during the frame (null outside it) and whether it stopped a CG.
   const StepBudget* budget_ = nullptr;
   bool cut_short_ = false;
+  int next_frame_stretch_ = 1;  // stretch_next_frame's, for one frame
   AttemptResult run_attempt(const ProbeCollider* probe, double dt_s, int steps);
   int count_inverted_tets(const NodeVectors& at);  // inverted_tet_count() on the job system
   // Inverted tets in the frame's starting shape (what it may keep), counted once a frame when

@@ -237,12 +237,17 @@ struct StitchingSettings {
   // threads) the widest seam 0.09-0.12 mm against 0.13-0.16 with one and the forces within 0.5 N
   // of one piece's, in the same time (docs/accuracy.md).
   int exchanges_per_frame = 2;
-  // The same for the MSDS (both integrators: the explicit one's steps, the implicit one's
-  // implicit steps shared among the parts); must divide MsdsSettings::steps_per_frame. One: with
-  // two the sweep-press's seams and forces came nearer one piece's, but in the large soak the
-  // implicit MSDS's frames were slower (p99 18-20 → 22-24 ms, the simulation's p50 4.45 → 4.92
-  // ms; docs/accuracy.md).
-  int msds_exchanges_per_frame = 1;
+  // The same for the explicit MSDS (its steps shared among the parts); must divide
+  // MsdsSettings::steps_per_frame. One: two gave the large case's sweep-press no narrower seams
+  // (0.52 against 0.36-0.40 mm on 2026-12-07, 0.29-0.33 against 0.48 before) and stronger forces.
+  int explicit_msds_exchanges_per_frame = 1;
+  // The same for the implicit MSDS (its implicit steps shared among the parts, one each at
+  // least); must divide MsdsSettings::steps_per_frame. Two: the error against one piece 10
+  // frames after a placed probe 13.3 % against 18.1 % with one (0.6 against 3.3 % after 60), and
+  // a frame without the time for both runs one (StitchedVolume::step_sharing): the large case's
+  // sweep-press ran its simulation at p90 4.15-4.17 ms against 5.0-5.2 with one (render-capped
+  // frames over 16.7 ms 8 against 26-35 of 571; docs/benchmarks.md).
+  int implicit_msds_exchanges_per_frame = 2;
   // The same for the corotational FEM. One: each part extracts its tets' rotations and sums its
   // blocks again before its CG, so two parts doubled that work (large case, sweep-press, 1e-3
   // rad: simulation p50 11.1 against 6.5-6.9 ms; widest seam 0.067 against 0.078 mm).

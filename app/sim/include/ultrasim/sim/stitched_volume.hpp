@@ -23,6 +23,7 @@
 namespace ultrasim::sim {
 
 class CorotationalFem;
+class MsdsEngine;
 class StitchedFrameTime;
 
 // Whether a method can run stitched: it takes anchor springs (the MSDS, the PCG and corotational
@@ -35,6 +36,10 @@ struct StitchStepStats {
   int sub_volumes_touched = 0;   // within the probe's reach (always stepped)
   int sub_volumes_asleep = 0;    // after the frame
   int sub_volumes_deferred = 0;  // due but left for a later frame (selection or budget)
+  // Seam exchanges the frame ran, and those of the method's it had no time for (step_sharing:
+  // their least work did not fit).
+  int exchanges = 0;
+  int exchanges_left_out = 0;
   // Corotational sub-volumes' due updates of the warped system held for want of time
   // ([stitching] corotational_update_turns_held), over the frame's exchanges.
   int updates_held = 0;
@@ -102,13 +107,17 @@ class StitchedVolume final : public DeformationEngine {
   // asked from the job system's threads, one at a time.
   using TimeLeftUs = std::function<std::int64_t()>;
   // step_within(), knowing the time left: the time (less what the work after the steps took last
-  // frame) is shared evenly over the exchanges_per_frame exchanges and, within each, over the
-  // touched sub-volumes' batches and as many of the other due
-  // ones as fit at last frame's least batch cost (one CG iteration); each batch stops its own
-  // work once its share is spent, and a batch beyond those planned starts only if one at that
-  // cost still ends in time. (Without it the first touched batch's CG took the whole share, each
-  // later batch ran its fixed work and one iteration past the deadline, and no neighbour of the
-  // touched sub-volumes stepped.) An empty time_left_us: exactly step_within().
+  // frame) is shared evenly over the frame's exchanges and, within each, over the touched
+  // sub-volumes' batches and as many of the other due ones as fit at last frame's least batch
+  // work (up to its first question and what followed its "no"); each batch stops its own work
+  // once its share is spent, and a batch beyond those planned starts only if its least work in
+  // every exchange still ends in time. (Without it the first touched batch's CG took the whole
+  // share, each later batch ran its fixed work and one iteration past the deadline, and no
+  // neighbour of the touched sub-volumes stepped.) The frame runs as many of exchanges_per_frame
+  // exchanges as its touched batches' least work fits (a divisor of it, one at least), each
+  // covering that many more of the frame's time (an MSDS sub-volume integrates it in its
+  // implicit steps made longer, or in more explicit ones: MsdsEngine::stretch_next_frame). An
+  // empty time_left_us: exactly step_within().
   EngineStepStats step_sharing(const ProbeCollider* probe, double frame_dt_s,
                                const StepBudget& may_continue, const TimeLeftUs& time_left_us);
   const Eigen::VectorXd& displacements_mm() const override { return u_; }
@@ -117,8 +126,8 @@ class StitchedVolume final : public DeformationEngine {
   void set_displacements_mm(const Eigen::VectorXd& u_mm) override;
 
   const StitchStepStats& last_stitch_stats() const { return stats_; }
-  // This method's: StitchingSettings::exchanges_per_frame, msds_exchanges_per_frame or
-  // corotational_exchanges_per_frame.
+  // This method's: StitchingSettings::exchanges_per_frame, explicit_msds_exchanges_per_frame,
+  // implicit_msds_exchanges_per_frame or corotational_exchanges_per_frame.
   int exchanges_per_frame() const { return exchanges_per_frame_; }
   const geometry::TetMesh& mesh() const { return mesh_; }
   int sub_volume_count() const { return static_cast<int>(subs_.size()); }
@@ -141,6 +150,7 @@ class StitchedVolume final : public DeformationEngine {
     SubVolumeBox box;
     std::unique_ptr<DeformationEngine> engine;
     CorotationalFem* corotational = nullptr;  // the engine, if it is one (its update clock)
+    MsdsEngine* msds = nullptr;               // the engine, if it is one (its frame's length)
     std::vector<int> global_node;             // per local node
     // Shared local nodes (in node order) and, per entry, its copy's index in copies_.
     std::vector<int> shared_local;
@@ -202,11 +212,12 @@ class StitchedVolume final : public DeformationEngine {
   void refresh_anchors(int sub, const ProbeCollider* probe);
   // Whether the probe may touch a node of the sub-volume (its blocks' bounds at the last step).
   bool within_reach(const SubVolume& sub, const ProbeCollider& probe) const;
-  // One part of a frame for each of `subs`, anchors first; `first_part`: the frame's first
+  // One part of a frame for each of `subs`, anchors first, covering `stretch` of the method's
+  // exchanges' time; `first_part`: the frame's first
   // exchange (it keeps the positions the frame started from and starts the frame's stats).
   // `budget` is each sub-volume's own (step_within; thread-safe: the batch steps in parallel).
   void step_batch(std::span<const int> subs, const ProbeCollider* probe, double frame_dt_s,
-                  bool first_part, const StepBudget& budget, bool hold_updates);
+                  int stretch, bool first_part, const StepBudget& budget, bool hold_updates);
   // What a seam update does with the loads its copies carry: an accepted frame remembers, a
   // cut-back one, or one refused for want of time with nothing in the probe's reach, halves
   // those of its seams, any other update (a refusal under the probe, construction, a region put
