@@ -64,7 +64,8 @@ class StitchedFrameTime {
 
   // The frame's steps are done: keeps their measures for the next frame's plan.
   void end_steps();
-  // The frame's work after the steps is done: kept back from the next frame's time.
+  // The frame's work after the steps is done: kept back from the next frame's time (where it
+  // took less than the last, a quarter of the difference less).
   void end_frame();
 
  private:
@@ -79,7 +80,8 @@ class StitchedFrameTime {
   std::mutex& clock_mutex_;
   StepBudget batch_budget_;  // [this]: no allocation
 
-  // Measured in earlier frames. The work after the steps. The costliest batch at its least (up
+  // Measured in earlier frames. The work after the steps (the last frame's, or falling toward
+  // it from a longer one's). The costliest batch at its least (up
   // to its first question). The costliest up to its first question among those in which a
   // corotational sub-volume brought its warped system up to date (0 until one did). The longest
   // a batch worked on after its first "no", in the last frame that said one.

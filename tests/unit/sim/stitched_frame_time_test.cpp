@@ -115,6 +115,27 @@ TEST_F(StitchedFrameTimeTest, RunsTheExchangesItsTouchedBatchesFitAtTheirLeastWo
   EXPECT_EQ(time_.exchanges(), 4);
 }
 
+// The work after the steps grows with the sub-volumes stepped: a longer one is kept back at once,
+// a shorter one only a quarter of the way a frame (a frame planned on a lighter frame's measure
+// ran late by the difference).
+TEST_F(StitchedFrameTimeTest, KeepsBackTheWorkAfterTheStepsRisingAtOnceFallingSlowly) {
+  const auto kept_back = [this] {
+    start_frame(6000, 1, 1, 0);
+    return time_.first_part_reserve_us(0);  // the last batch: the work after the steps alone
+  };
+  EXPECT_EQ(kept_back(), 0);
+  end_frame(400);
+  EXPECT_EQ(kept_back(), 400);
+  end_frame(800);
+  EXPECT_EQ(kept_back(), 800);
+  end_frame(400);
+  EXPECT_EQ(kept_back(), 700);
+  end_frame(400);
+  EXPECT_EQ(kept_back(), 625);
+  end_frame(900);
+  EXPECT_EQ(kept_back(), 900);
+}
+
 TEST_F(StitchedFrameTimeTest, ABatchHearsNoPastItsShareAndKeepsItsTailBackTheNextFrame) {
   start_frame(6000, 1, 1, 0);
   time_.begin_batch(1000);
