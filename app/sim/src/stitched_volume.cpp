@@ -130,7 +130,6 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   subs_to_look_at_.reserve(subs_.size());
-  seams_to_update_.reserve(shared_nodes_.size());
   holds_updated_seam_.assign(subs_.size(), 0);
   copy_positions_mm_.resize(copies_.size());
   for (std::size_t c = 0; c < copies_.size(); ++c) {

@@ -273,7 +273,9 @@ class StitchedVolume final : public DeformationEngine {
   // its copy, to their mean: the next step's contact test takes them up in one place.
   void join_held_copies();
   void join_held_copies_of(int grid_node);
-  int seam_task_count() const;  // finish_frame's tasks over the seams to update
+  // The first of grid node g's copies (in sub-volume order) whose sub-volume moved this frame, or
+  // -1: the one whose finish_frame task updates the seam.
+  int first_moved_copy(int g) const;
   // A shared node's midpoint, gap, loads and pull from its copies.
   void update_seam(int grid_node, SeamLoads loads);
   // visit(g) once for each grid node that a moved sub-volume (`moved` as the loop reaches it)
@@ -344,7 +346,6 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<std::uint32_t> node_stamp_;
   std::uint32_t node_stamp_counter_ = 0;
   std::vector<int> moved_subs_;                   // per frame, sized once
-  std::vector<int> seams_to_update_;              // per frame, sized once
   std::vector<std::uint8_t> holds_updated_seam_;  // per sub-volume, per frame, sized once
   // tears_a_seam's, sized once: the stepped sub-volumes whose seams it looks at node by node;
   // per sub-volume, its seam copies' largest move this frame and whether it tears a seam.
