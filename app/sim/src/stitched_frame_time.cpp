@@ -40,7 +40,6 @@ void StitchedFrameTime::start_frame(const StepBudget& may_continue, const TimeLe
 
 int StitchedFrameTime::exchanges_that_fit(std::int64_t left_us, int parts,
                                           int touched_batches) const {
-  // A batch's least work: up to its first question, then what it goes on with after a "no".
   if (batch_cost_us_ <= 0) return parts;  // nothing measured yet
   for (int exchanges = parts; exchanges > 1; --exchanges) {
     if (parts % exchanges == 0 &&

@@ -238,8 +238,9 @@ struct StitchingSettings {
   // of one piece's, in the same time (docs/accuracy.md).
   int exchanges_per_frame = 2;
   // The same for the explicit MSDS (its steps shared among the parts); must divide
-  // MsdsSettings::steps_per_frame. One: two gave the large case's sweep-press no narrower seams
-  // (0.52 against 0.36-0.40 mm on 2026-12-07, 0.29-0.33 against 0.48 before) and stronger forces.
+  // MsdsSettings::steps_per_frame. One: with two the large case's sweep-press seams were 0.29-0.33
+  // against 0.48 mm once (2026-11-28) and 0.52 against 0.36-0.40 on 2026-12-07, its forces
+  // stronger (66-68 against 58-60 N): no steady gain.
   int explicit_msds_exchanges_per_frame = 1;
   // The same for the implicit MSDS (its implicit steps shared among the parts, one each at
   // least); must divide MsdsSettings::steps_per_frame. Two: the error against one piece 10
