@@ -82,7 +82,7 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   const bool shares = time.shares();
   // A frame with no time for all its exchanges covers its time in fewer, longer parts: the
   // MSDS's sub-volumes integrate that many parts' simulated time in each (the PCG FEM's static
-  // answer does not depend on it). The large case's six touched sub-volumes took 3.4-3.6 ms at
+  // answer does not depend on it). The large case's six touched sub-volumes took 3.4-3.9 ms at
   // their least in two exchanges of the PCG FEM, and the frame's work after the steps 0.7 more,
   // over the simulation's 4 ms on 99 of 571 frames by 0.3-2.2 ms.
   const int parts = time.exchanges();

@@ -1231,7 +1231,7 @@ TEST(StitchedVolume, TheLaterExchangesGetTheirShareOfTheTime) {
 // A frame whose touched batches' least work does not fit twice in its time runs one seam exchange
 // instead of two, and its MSDS sub-volumes cover the frame's time in it: to the bit the frame of
 // a volume of one exchange whose implicit step is the frame (the large case's six touched
-// sub-volumes took 3.4-3.6 ms at their least in the PCG FEM's two exchanges, and the work after
+// sub-volumes took 3.4-3.9 ms at their least in the PCG FEM's two exchanges, and the work after
 // them 0.7 more, past the simulation's 4 ms on 99 of 571 frames). Each look at the clock costs
 // 1 µs, so a batch's least work is measured; with time, both exchanges run.
 TEST(StitchedVolume, AFrameWithoutTimeForItsExchangesCoversItsTimeInFewer) {
