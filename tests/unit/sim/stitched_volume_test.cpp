@@ -1585,6 +1585,62 @@ TEST(StitchedVolume, AFrameASubVolumeTookInSmallerStepsStandsAndSaysWhy) {
   }
 }
 
+// A sub-volume's own refusal with nothing in the probe's reach: where its method kept the frame's
+// start only because the budget ran out before smaller steps were tried, the frame gives no
+// verdict (refused, cut short: the next frame tries again, the tissue where the frame found it);
+// where the smaller steps failed too (the sub-volume reset), the region goes to rest. The
+// explicit MSDS, its masses unscaled, at 64 times its stable step (four halvings leave it 4 times
+// over), 4 steps a frame (so its budget is asked only before smaller steps), from where one piece
+// holds a 2 mm press, let go.
+TEST(StitchedVolume, ASubVolumesOwnRefusalWithNothingInReachWaitsForTimeOrGoesToRest) {
+  const Region r = make_region({22, 10, 8});
+  hal::InlineJobSystem jobs;
+  LinearFem one_piece(r.mesh, r.materials, r.fixed, EngineSettings{}.fem);
+  const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, 2.0);
+  for (int f = 0; f < 100; ++f) one_piece.step(&probe, 1.0 / 60);
+  MsdsSettings unscaled;
+  unscaled.scale_mass_for_explicit_step = false;
+  const double bound_s =
+      MsdsEngine(MsdsIntegrator::kExplicitEuler, r.mesh, r.materials, r.fixed, unscaled)
+          .explicit_stable_time_step_s();
+  EngineSettings settings;
+  settings.msds = unscaled;
+  settings.msds.time_step_s = 64.0 * bound_s;
+  settings.msds.steps_per_frame = 4;
+  const StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
+  const auto let_go = [&](const StepBudget& budget) {
+    auto stitched = std::make_unique<StitchedVolume>(
+        r.grid, r.materials, r.fixed, EngineKind::kMsdsExplicit, settings, stitching, &jobs);
+    stitched->set_displacements_mm(one_piece.displacements_mm());
+    const EngineStepStats s = stitched->step_within(nullptr, 1.0 / 60, budget);
+    return std::pair{std::move(stitched), s};
+  };
+
+  // Time for one sub-volume to start (a frame with nothing in reach steps none without it), and
+  // none for its smaller steps.
+  int questions = 0;
+  const auto [waiting, out_of_time] = let_go([&questions] { return ++questions == 1; });
+  ASSERT_GE(questions, 2) << "the sub-volume asked for smaller steps";
+  EXPECT_TRUE(out_of_time.diverged);
+  EXPECT_EQ(out_of_time.recovery, Recovery::kKeptLastGood);
+  EXPECT_TRUE(out_of_time.cut_short) << "no verdict: the next frame tries again";
+  EXPECT_LT(max_difference(waiting->displacements_mm(), one_piece.displacements_mm()), 1e-9)
+      << "where the frame found it, not put to rest";
+
+  const auto [at_rest, failed] = let_go([] { return true; });
+  EXPECT_TRUE(failed.diverged);
+  EXPECT_EQ(failed.recovery, Recovery::kReset);
+  EXPECT_TRUE(failed.cause == DivergenceCause::kEnergy ||
+              failed.cause == DivergenceCause::kNonFinite ||
+              failed.cause == DivergenceCause::kRunaway)
+      << cause_key(failed.cause);
+  EXPECT_FALSE(failed.cut_short);
+  EXPECT_EQ(max_norm(at_rest->displacements_mm()), 0.0);
+  for (int s = 0; s < at_rest->sub_volume_count(); ++s) {
+    EXPECT_EQ(max_norm(at_rest->sub_volume_engine(s).displacements_mm()), 0.0);
+  }
+}
+
 // A frame that opens a seam wider than refuse_gap_mm is refused as a whole (a torn seam never
 // reaches the screen): a press across the seam, deepening, first with no bound to learn how wide
 // it opens the seam, then with the bound at half that. The accepted frames' widest gap (every
