@@ -47,6 +47,17 @@ double max_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return max_norm(a - b);
 }
 
+// The explicit MSDS with its masses unscaled (its true stability limit) at `times_bound` times
+// its stable step on the region's mesh.
+EngineSettings unscaled_explicit_msds(const Region& r, double times_bound) {
+  EngineSettings settings;
+  settings.msds.scale_mass_for_explicit_step = false;
+  settings.msds.time_step_s = times_bound * MsdsEngine(MsdsIntegrator::kExplicitEuler, r.mesh,
+                                                       r.materials, r.fixed, settings.msds)
+                                                .explicit_stable_time_step_s();
+  return settings;
+}
+
 // ---------------------------------------------------------------------------------------------
 // The split.
 
@@ -1552,14 +1563,7 @@ TEST(StitchedVolume, AFrameEverySubVolumeAcceptsStandsWhateverTetsTheProbeFlatte
 TEST(StitchedVolume, AFrameASubVolumeTookInSmallerStepsStandsAndSaysWhy) {
   const Region r = make_region({22, 10, 8});
   hal::InlineJobSystem jobs;
-  MsdsSettings unscaled;
-  unscaled.scale_mass_for_explicit_step = false;
-  const double bound_s =
-      MsdsEngine(MsdsIntegrator::kExplicitEuler, r.mesh, r.materials, r.fixed, unscaled)
-          .explicit_stable_time_step_s();
-  EngineSettings settings;
-  settings.msds = unscaled;
-  settings.msds.time_step_s = 2.0 * bound_s;
+  const EngineSettings settings = unscaled_explicit_msds(r, 2.0);
   for (const int exchanges : {1, 2}) {
     SCOPED_TRACE(exchanges);
     StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
@@ -1598,14 +1602,7 @@ TEST(StitchedVolume, ASubVolumesOwnRefusalWithNothingInReachWaitsForTimeOrGoesTo
   LinearFem one_piece(r.mesh, r.materials, r.fixed, EngineSettings{}.fem);
   const ProbeCollider probe = sphere_probe(kSeamXmm - 3.0, 9.0, 2.0);
   for (int f = 0; f < 100; ++f) one_piece.step(&probe, 1.0 / 60);
-  MsdsSettings unscaled;
-  unscaled.scale_mass_for_explicit_step = false;
-  const double bound_s =
-      MsdsEngine(MsdsIntegrator::kExplicitEuler, r.mesh, r.materials, r.fixed, unscaled)
-          .explicit_stable_time_step_s();
-  EngineSettings settings;
-  settings.msds = unscaled;
-  settings.msds.time_step_s = 64.0 * bound_s;
+  EngineSettings settings = unscaled_explicit_msds(r, 64.0);
   settings.msds.steps_per_frame = 4;
   const StitchingSettings stitching{.sub_volumes = {2, 1, 1}, .selective = false};
   const auto let_go = [&](const StepBudget& budget) {
