@@ -13,6 +13,7 @@
 
 #include "model_checks.hpp"
 #include "msds_chunks.hpp"
+#include "msds_implicit_lattice.hpp"
 #include "msds_kernels.hpp"
 #include "msds_spring_lattice.hpp"
 #include "msds_task_team.hpp"
@@ -51,7 +52,6 @@ using msds_detail::kNodePadding;
 
 using msds_detail::chunk_count;
 using msds_detail::kNodesPerChunk;
-using msds_detail::kSpringsPerChunk;
 // steps × kMaxFrameStretch << kMaxHalvings must fit an int.
 constexpr int kMaxStepsPerFrame = 100000;
 constexpr int kMaxFrameStretch = 64;
@@ -412,15 +412,12 @@ void MsdsEngine::build_adjacency() {
   for (int i = 0; i < n; ++i) adjacency_begin_[i + 1] += adjacency_begin_[i];
   adjacency_spring_.resize(adjacency_begin_[n]);
   adjacency_other_.resize(adjacency_begin_[n]);
-  adjacency_sign_.resize(adjacency_begin_[n]);
   std::vector<int> fill(adjacency_begin_.begin(), adjacency_begin_.end() - 1);
   for (int s = 0; s < static_cast<int>(springs_.size()); ++s) {
     const auto& spring = springs_[s];
     adjacency_spring_[fill[spring.a]] = s;
-    adjacency_sign_[fill[spring.a]] = 1.0;  // the spring's force is stored as the one on a
     adjacency_other_[fill[spring.a]++] = spring.b;
     adjacency_spring_[fill[spring.b]] = s;
-    adjacency_sign_[fill[spring.b]] = -1.0;
     adjacency_other_[fill[spring.b]++] = spring.a;
   }
 }
@@ -460,16 +457,15 @@ void MsdsEngine::size_buffers() {
   anchor_of_node_.assign(rest_.size(), -1);
   mass_scaled_for_anchor_mn_per_mm_.assign(rest_.size(), 0.0);
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
-    spring_force_along_.assign(springs_.size(), SpringForceAlong{});
-    spring_block_.assign(springs_.size(), ImplicitSpringBlock{});
-    for (auto* buffer : {&inverse_diagonal_, &rhs_, &r_, &z_, &p_, &q_, &cg_velocity_}) {
-      buffer->assign(rest_.size(), Eigen::Vector3d::Zero());
+    implicit_lattice_ = std::make_unique<msds_detail::ImplicitLattice>(rest_, springs_);
+    for (auto* buffer : {&node_elastic_, &node_damping_, &node_block_diagonal_, &inverse_diagonal_,
+                         &rhs_, &r_, &z_, &p_, &q_, &cg_velocity_}) {
+      buffer->assign_zero(n);
     }
+    system_diagonal_.assign(padded, 0.0);
   }
   tet_lattice_ = std::make_unique<msds_detail::TetLattice>(tets_, n);
-  const int chunks = std::max({node_chunk_count(),
-                               chunk_count(static_cast<int>(springs_.size()), kSpringsPerChunk),
-                               tet_lattice_->chunk_count(), 1});
+  const int chunks = std::max({node_chunk_count(), tet_lattice_->chunk_count(), 1});
   partial_a_.assign(chunks, 0.0);
   partial_b_.assign(chunks, 0.0);
   partial_c_.assign(chunks, 0.0);
@@ -762,7 +758,6 @@ MsdsEngine::StepResult MsdsEngine::advance(const ProbeCollider* probe, double dt
                                            bool new_probe) {
   apply_contacts(probe, new_probe);
   if (integrator_ == MsdsIntegrator::kExplicitEuler) return explicit_euler_update(dt_s);
-  compute_spring_forces(dt_s);
   return implicit_euler_update(dt_s);
 }
 

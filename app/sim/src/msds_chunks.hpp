@@ -1,6 +1,6 @@
 #pragma once
 
-// How MsdsEngine splits its per-node and per-spring work (internal, shared by msds.cpp and
+// How MsdsEngine splits its per-node work (internal, shared by msds.cpp and
 // msds_implicit.cpp): fixed chunks, so every sum is taken in chunk order whatever thread runs
 // a chunk.
 
@@ -13,7 +13,6 @@ namespace msds_detail {
 
 // Node chunks are also the explicit step's blocks: their kinetic energies are summed in order.
 inline constexpr int kNodesPerChunk = 256;
-inline constexpr int kSpringsPerChunk = 1024;
 
 inline int chunk_count(int items, int per_chunk) {
   return (items + per_chunk - 1) / per_chunk;

@@ -3,16 +3,22 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <vector>
 
 #include "msds_chunks.hpp"
+#include "msds_implicit_lattice.hpp"
 #include "ultrasim/sim/msds.hpp"
 
 namespace ultrasim::sim {
 
 using msds_detail::chunk_count;
 using msds_detail::kNodesPerChunk;
-using msds_detail::kSpringsPerChunk;
+
+// A range's product fills whole node chunks' partial sums; a chunk's node sums start on a whole
+// group of lanes.
+static_assert(msds_detail::ImplicitLattice::kNodesPerRange % kNodesPerChunk == 0);
+static_assert(kNodesPerChunk % msds_detail::kImplicitSumLanes == 0);
 
 // Implicit Euler (e).
 //
@@ -37,42 +43,52 @@ using msds_detail::kSpringsPerChunk;
 // kept as the next step's CG start (not its momentum) where it lowers that step's energy below a
 // zero start's, so a step stopped again is still such a descent (implicit_euler_update).
 
-void MsdsEngine::compute_spring_forces(double dt_s) {
-  // Each spring once (its length and direction cost a square root and a division); the node
-  // passes then sum their springs' forces (sum_node_forces): no two tasks write the same place,
-  // and every node adds in the same order with or without jobs.
-  const int spring_count = static_cast<int>(springs_.size());
-  for_each_chunk(chunk_count(spring_count, kSpringsPerChunk), [&](int chunk) {
-    const int end = std::min(spring_count, (chunk + 1) * kSpringsPerChunk);
-    for (int s = chunk * kSpringsPerChunk; s < end; ++s) {
-      const MsdsSpring& spring = springs_[s];
-      double length = 0.0;
-      const Eigen::Vector3d dir =
-          spring_direction(spring.a, spring.b, spring.rest_length_mm, length);
-      // Force on node a; node b gets the opposite. Damping along the spring only (the relative
-      // velocity projected on its direction): it resists stretching and compression but not a
-      // rigid rotation of the edge, as in the published MSDS.
-      spring_force_along_[s] = {
-          spring.stiffness_mn_per_mm * (length - spring.rest_length_mm),
-          spring.damping_mn_s_per_mm * (velocity_[spring.b] - velocity_[spring.a]).dot(dir)};
-      spring_block_[s] = implicit_spring_block(spring, dir, length, dt_s);
-    }
-  });
+namespace {
+
+msds_detail::NodeArrays read(const std::vector<double>& x, const std::vector<double>& y,
+                             const std::vector<double>& z) {
+  return {x.data(), y.data(), z.data()};
 }
 
-void MsdsEngine::sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn,
-                                 Eigen::Vector3d& block_diagonal) const {
-  elastic_mn.setZero();
-  damping_mn.setZero();
-  block_diagonal.setZero();
-  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
-    const int s = adjacency_spring_[e];
-    const ImplicitSpringBlock& block = spring_block_[s];
-    const double sign = adjacency_sign_[e];
-    elastic_mn += (sign * spring_force_along_[s].elastic_mn) * block.dir;
-    damping_mn += (sign * spring_force_along_[s].damping_mn) * block.dir;
-    block_diagonal += block.diagonal();
-  }
+msds_detail::MutableNodeArrays write(std::vector<double>& x, std::vector<double>& y,
+                                     std::vector<double>& z) {
+  return {x.data(), y.data(), z.data()};
+}
+
+}  // namespace
+
+void MsdsEngine::compute_spring_forces(double dt_s) {
+  // Each spring once, by diagonal (msds_implicit_lattice.hpp); the node pass then sums them.
+  msds_detail::ImplicitLattice& lattice = *implicit_lattice_;
+  const auto position = read(position_.x, position_.y, position_.z);
+  const auto velocity = read(velocity_.x, velocity_.y, velocity_.z);
+  for_each_chunk(lattice.range_count(),
+                 [&](int range) { lattice.compute_springs(range, position, velocity, dt_s); });
+}
+
+void MsdsEngine::system_times(const NodeVectors& p, NodeVectors& q, bool pq) {
+  // (M + h C + h² K) p at the nodes that move; p is zero on those that do not. The anchor's row
+  // is h² k I (undamped; its target is fixed within the step).
+  msds_detail::ImplicitLattice& lattice = *implicit_lattice_;
+  const int n = node_count();
+  for_each_chunk(lattice.range_count(), [&](int range) {
+    lattice.multiply(range, system_diagonal_.data(), read(p.x, p.y, p.z), write(q.x, q.y, q.z));
+    const int begin = lattice.range_begin(range);
+    const int end = lattice.range_end(range);
+    if (!pq) return;
+    for (int chunk = begin / kNodesPerChunk; chunk * kNodesPerChunk < end; ++chunk) {
+      double sum = 0.0;
+      const int chunk_end = std::min(n, (chunk + 1) * kNodesPerChunk);
+      for (int i = chunk * kNodesPerChunk; i < chunk_end; ++i) {
+        if (!moves(i)) {
+          q.x[i] = q.y[i] = q.z[i] = 0.0;
+          continue;
+        }
+        sum += (p.x[i] * q.x[i] + p.y[i] * q.y[i]) + p.z[i] * q.z[i];
+      }
+      partial_a_[chunk] = sum;
+    }
+  });
 }
 
 MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
@@ -82,60 +98,72 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   // unfinished velocity; either is zero on every contact (held or released) and pinned node, so
   // a neighbour's release in the pass below does not change what a node reads.
   const bool kept_start = truncated_velocity_kept_;
+  const double h2 = dt_s * dt_s;
   for_each_chunk(chunks, [&](int chunk) {
     bool moving = false;
     const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      if (!kept_start || !moves(i)) cg_velocity_[i] = velocity_[i];
-      moving = moving || !(cg_velocity_[i].array() == 0.0).all();  // NaN counts as moving
+      if (!kept_start || !moves(i)) cg_velocity_.set(i, velocity_[i]);
+      // NaN counts as moving.
+      moving = moving ||
+               !(cg_velocity_.x[i] == 0.0 && cg_velocity_.y[i] == 0.0 && cg_velocity_.z[i] == 0.0);
+      // The anchor's row is h² k I, undamped (anchor_force says why).
+      system_diagonal_[i] = mass_kg_[i] + h2 * anchor_stiffness_mn_per_mm_[i];
     }
     partial_a_[chunk] = moving ? 1.0 : 0.0;
   });
   // From a zero start, A v0 = 0 and the start's residual is the right-hand side: the product is
   // skipped (it was an eighth of a starved sub-volume's frame).
   const bool from_zero = sum_partials(partial_a_, chunks) == 0.0;
+  compute_spring_forces(dt_s);
+  if (!from_zero) system_times(cg_velocity_, q_, false);  // A v_start, read below
   // A kept start is tested below against a zero one.
   const bool test_kept_start = kept_start && !from_zero;
   // One pass per node: its forces, the contact release, its row of the system and the start's
   // residual; for a kept start, what a zero start would have (r = rhs) and the step's energy at
   // the start, E(v) = ½ vᵀA v − rhsᵀv = −½ vᵀ(rhs + r).
+  const msds_detail::ImplicitLattice& lattice = *implicit_lattice_;
+  const msds_detail::StartRows rows{
+      pinned_.data(),
+      held_.data(),
+      padded_mass_kg_.data(),
+      system_diagonal_.data(),
+      read(node_block_diagonal_.x, node_block_diagonal_.y, node_block_diagonal_.z),
+      read(velocity_.x, velocity_.y, velocity_.z),
+      read(node_elastic_.x, node_elastic_.y, node_elastic_.z),
+      from_zero ? msds_detail::NodeArrays{} : read(q_.x, q_.y, q_.z),
+      dt_s,
+      write(inverse_diagonal_.x, inverse_diagonal_.y, inverse_diagonal_.z),
+      write(rhs_.x, rhs_.y, rhs_.z),
+      write(r_.x, r_.y, r_.z),
+      write(z_.x, z_.y, z_.z),
+      write(p_.x, p_.y, p_.z)};
   for_each_chunk(chunks, [&](int chunk) {
-    double rhs_squared = 0.0, rz = 0.0, rr = 0.0, rz_zero = 0.0, energy = 0.0;
-    const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-    for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-      if (!pinned_[i]) {
-        Eigen::Vector3d elastic, damping, block_diagonal;
-        sum_node_forces(i, elastic, damping, block_diagonal);
-        Eigen::Vector3d anchor_elastic, anchor_damping;
+    const int begin = chunk * kNodesPerChunk;
+    const int end = std::min(n, begin + kNodesPerChunk);
+    lattice.sum_node_forces(
+        begin, end, write(node_elastic_.x, node_elastic_.y, node_elastic_.z),
+        write(node_damping_.x, node_damping_.y, node_damping_.z),
+        write(node_block_diagonal_.x, node_block_diagonal_.y, node_block_diagonal_.z));
+    for (int i = begin; i < end; ++i) {
+      if (anchor_of_node_[i] >= 0) {
+        Eigen::Vector3d anchor_elastic, anchor_damping;  // undamped here: see anchor_force
         anchor_force(i, anchor_elastic, anchor_damping);
-        elastic += anchor_elastic;
-        release_if_pulled_away(i, elastic + damping + anchor_damping);
-        if (!held_[i]) {
-          const Eigen::Vector3d diagonal =
-              Eigen::Vector3d::Constant(mass_kg_[i] + anchor_system_diagonal(i, dt_s)) +
-              block_diagonal;
-          inverse_diagonal_[i] = diagonal.cwiseInverse();
-          rhs_[i] = mass_kg_[i] * velocity_[i] + dt_s * elastic;
-          r_[i] = from_zero ? rhs_[i]
-                            : Eigen::Vector3d(rhs_[i] - system_row_times(i, cg_velocity_, dt_s));
-          z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
-          p_[i] = z_[i];
-          rhs_squared += rhs_[i].squaredNorm();
-          rz += r_[i].dot(z_[i]);
-          rr += r_[i].squaredNorm();
-          if (test_kept_start) {
-            rz_zero += rhs_[i].dot(inverse_diagonal_[i].cwiseProduct(rhs_[i]));
-            energy -= 0.5 * cg_velocity_[i].dot(rhs_[i] + r_[i]);
-          }
-          continue;
-        }
+        node_elastic_.set(i, node_elastic_[i] + anchor_elastic);
       }
-      // Not in the system: zero rows keep r, z, p (and so v's update) zero here.
-      inverse_diagonal_[i].setZero();
-      rhs_[i].setZero();
-      r_[i].setZero();
-      z_[i].setZero();
-      p_[i].setZero();
+      if (held_[i]) release_if_pulled_away(i, node_elastic_[i] + node_damping_[i]);
+    }
+    lattice.vector_kernels().start_rows(rows, begin, end);
+    double rhs_squared = 0.0, rz = 0.0, rr = 0.0, rz_zero = 0.0, energy = 0.0;
+    for (int i = begin; i < end; ++i) {
+      const Eigen::Vector3d rhs = rhs_[i], r = r_[i];
+      rhs_squared += rhs.squaredNorm();
+      rz += r.dot(z_[i]);
+      rr += r.squaredNorm();
+      if (test_kept_start) {
+        rz_zero += rhs.dot(inverse_diagonal_[i].cwiseProduct(rhs));
+        energy -= 0.5 * cg_velocity_[i].dot(rhs + r);
+      }
     }
     partial_a_[chunk] = rz;
     partial_b_[chunk] = rr;
@@ -158,15 +186,22 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
       for (int i = chunk * kNodesPerChunk; i < end; ++i) {
         if (!moves(i)) continue;
-        cg_velocity_[i].setZero();
-        r_[i] = rhs_[i];
-        z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
-        p_[i] = z_[i];
+        cg_velocity_.set(i, Eigen::Vector3d::Zero());
+        r_.set(i, rhs_[i]);
+        z_.set(i, inverse_diagonal_[i].cwiseProduct(rhs_[i]));
+        p_.set(i, z_[i]);
       }
     });
     rz = sum_partials(partial_d_, chunks);
     residual = reference;
   }
+  const msds_detail::CgVectors cg{
+      write(cg_velocity_.x, cg_velocity_.y, cg_velocity_.z),
+      write(r_.x, r_.y, r_.z),
+      write(z_.x, z_.y, z_.z),
+      write(p_.x, p_.y, p_.z),
+      read(q_.x, q_.y, q_.z),
+      read(inverse_diagonal_.x, inverse_diagonal_.y, inverse_diagonal_.z)};
   int iteration = 0;
   bool truncated = false;
   // Relative to the right-hand side, with a floor: near a static state the right-hand side is
@@ -180,27 +215,18 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
       truncated = true;
       break;
     }
-    for_each_chunk(chunks, [&](int chunk) {
-      double pq = 0.0;
-      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-      for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-        q_[i] = moves(i) ? system_row_times(i, p_, dt_s) : Eigen::Vector3d::Zero();
-        pq += p_[i].dot(q_[i]);
-      }
-      partial_a_[chunk] = pq;
-    });
+    system_times(p_, q_, true);
     const double pq = sum_partials(partial_a_, chunks);
     if (!(pq > 0.0)) break;  // converged to rounding (the system is positive definite)
     const double alpha = rz / pq;
     for_each_chunk(chunks, [&](int chunk) {
       double rz_chunk = 0.0, rr = 0.0;
       const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-      for (int i = chunk * kNodesPerChunk; i < end; ++i) {
-        cg_velocity_[i] += alpha * p_[i];
-        r_[i] -= alpha * q_[i];
-        z_[i] = inverse_diagonal_[i].cwiseProduct(r_[i]);
-        rz_chunk += r_[i].dot(z_[i]);
-        rr += r_[i].squaredNorm();
+      const int begin = chunk * kNodesPerChunk;
+      implicit_lattice_->vector_kernels().cg_update(cg, alpha, begin, end);
+      for (int i = begin; i < end; ++i) {
+        rz_chunk += (r_.x[i] * z_.x[i] + r_.y[i] * z_.y[i]) + r_.z[i] * z_.z[i];
+        rr += (r_.x[i] * r_.x[i] + r_.y[i] * r_.y[i]) + r_.z[i] * r_.z[i];
       }
       partial_a_[chunk] = rz_chunk;
       partial_b_[chunk] = rr;
@@ -210,8 +236,9 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     rz = rz_next;
     residual = std::sqrt(sum_partials(partial_b_, chunks));
     for_each_chunk(chunks, [&](int chunk) {
-      const int end = std::min(n, (chunk + 1) * kNodesPerChunk);
-      for (int i = chunk * kNodesPerChunk; i < end; ++i) p_[i] = z_[i] + beta * p_[i];
+      const int begin = chunk * kNodesPerChunk;
+      const int end = std::min(n, begin + kNodesPerChunk);
+      implicit_lattice_->vector_kernels().cg_direction(cg, beta, begin, end);
     });
     ++iteration;
   }
@@ -220,31 +247,6 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
   result.cg_iterations = iteration;
   result.cg_relative_residual = reference > 0.0 ? residual / reference : 0.0;
   return result;
-}
-
-MsdsEngine::ImplicitSpringBlock MsdsEngine::implicit_spring_block(const MsdsSpring& spring,
-                                                                  const Eigen::Vector3d& dir,
-                                                                  double length_mm, double h) {
-  // h c n nᵀ + h² k [n nᵀ + t (I − n nᵀ)] = (h c + h² k (1 − t)) n nᵀ + h² k t I.
-  const double transverse = std::max(0.0, 1.0 - spring.rest_length_mm / length_mm);
-  const double k = h * h * spring.stiffness_mn_per_mm;
-  return {h * spring.damping_mn_s_per_mm + k * (1.0 - transverse), k * transverse, dir};
-}
-
-double MsdsEngine::anchor_system_diagonal(int node, double h) const {
-  // Undamped (anchor_force says why): h² k only.
-  return h * h * anchor_stiffness_mn_per_mm_[node];
-}
-
-Eigen::Vector3d MsdsEngine::system_row_times(int node, const std::vector<Eigen::Vector3d>& p,
-                                             double h) const {
-  // (M + h C + h² K) p at a node that moves; p is zero on nodes that do not. The anchor's row is
-  // h² k I (undamped; its target is fixed within the step).
-  Eigen::Vector3d sum = (mass_kg_[node] + anchor_system_diagonal(node, h)) * p[node];
-  for (int e = adjacency_begin_[node]; e < adjacency_begin_[node + 1]; ++e) {
-    sum += spring_block_[adjacency_spring_[e]].times(p[node] - p[adjacency_other_[e]]);
-  }
-  return sum;
 }
 
 MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s, bool truncated) {
@@ -258,7 +260,7 @@ MsdsEngine::StepResult MsdsEngine::finish_implicit_update(double dt_s, bool trun
     for (int i = chunk * kNodesPerChunk; i < end; ++i) {
       min_clearance = std::min(min_clearance, probe_clearance_mm_[i]);
       if (!moves(i)) continue;
-      const Eigen::Vector3d& v = cg_velocity_[i];
+      const Eigen::Vector3d v = cg_velocity_[i];
       const Eigen::Vector3d x = position_[i] + dt_s * v;  // backward Euler: the new velocity
       position_.set(i, x);
       velocity_.set(i, truncated ? Eigen::Vector3d::Zero() : v);

@@ -17,6 +17,7 @@
 namespace ultrasim::sim {
 
 namespace msds_detail {
+class ImplicitLattice;
 class TaskTeam;
 class TetLattice;
 }  // namespace msds_detail
@@ -230,21 +231,6 @@ class MsdsEngine final : public DeformationEngine {
     int cg_iterations = 0;
     double cg_relative_residual = 0.0;
   };
-  // One spring's h·C_s + h²·K_s = along n nᵀ + across I (n its unit vector): every term of it
-  // is n nᵀ or I, so 5 numbers instead of a 3×3 block, and fewer loads and flops in the implicit
-  // solver's matrix-free product.
-  struct ImplicitSpringBlock {
-    double along = 0.0;
-    double across = 0.0;
-    Eigen::Vector3d dir = Eigen::Vector3d::UnitX();
-
-    Eigen::Vector3d times(const Eigen::Vector3d& p) const {
-      return along * dir.dot(p) * dir + across * p;
-    }
-    Eigen::Vector3d diagonal() const {
-      return along * dir.cwiseProduct(dir) + Eigen::Vector3d::Constant(across);
-    }
-  };
   struct AttemptResult {
     bool accepted = false;
     bool blew_up = false;  // non-finite or kinetic energy past the ceiling (not just inversion)
@@ -314,12 +300,9 @@ class MsdsEngine final : public DeformationEngine {
   // node's own block of their stiffness, in one pass over its springs.
   void elastic_force_and_stiffness(int node, Eigen::Vector3d& elastic_mn,
                                    Eigen::Matrix3d& stiffness_mn_per_mm) const;
-  // Every spring's elastic and damping force at the current state and its implicit block.
+  // Every spring's elastic and damping force at the current state and its implicit block
+  // (implicit_lattice_), on the job system.
   void compute_spring_forces(double dt_s);
-  // A node's share of those, Σ ± over its springs in adjacency order, and of the springs'
-  // blocks' diagonals (the system's diagonal), in one pass.
-  void sum_node_forces(int node, Eigen::Vector3d& elastic_mn, Eigen::Vector3d& damping_mn,
-                       Eigen::Vector3d& block_diagonal) const;
   StepResult explicit_euler_update(double dt_s);
   // The explicit step on one task's run of node blocks.
   void explicit_euler_task(int task, double dt_s);
@@ -327,14 +310,10 @@ class MsdsEngine final : public DeformationEngine {
   // away (release_if_pulled_away); zero the force of those still held, which do not move.
   void settle_contacts(int begin, int end, float* force_x, float* force_y, float* force_z);
   StepResult implicit_euler_update(double dt_s);
-  // h·C_s + h²·K_s of one spring, the transverse stiffness clamped at ≥ 0.
-  static ImplicitSpringBlock implicit_spring_block(const MsdsSpring& spring,
-                                                   const Eigen::Vector3d& dir, double length_mm,
-                                                   double h);
-  // Row `node` of (M + h C + h² K) times p, anchors included.
-  Eigen::Vector3d system_row_times(int node, const std::vector<Eigen::Vector3d>& p, double h) const;
-  // The anchor's h² k on the node's diagonal (0 without one).
-  double anchor_system_diagonal(int node, double h) const;
+  // q = (M + h C + h² K) p on the job system (system_diagonal_ = M + the anchors' h² k). For a
+  // CG iteration (`pq`), zero on the nodes that do not move and each node chunk's p · q in
+  // partial_a_; else every node's row (a held node the step then releases needs its own).
+  void system_times(const NodeVectors& p, NodeVectors& q, bool pq);
   // x += h v1; v1 is kept as the velocity unless the budget truncated the CG (then zero).
   StepResult finish_implicit_update(double dt_s, bool truncated);
   double contact_force_n() const;
@@ -404,7 +383,6 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<int> adjacency_begin_;
   std::vector<int> adjacency_spring_;
   std::vector<int> adjacency_other_;
-  std::vector<double> adjacency_sign_;  // +1 where the node is the spring's a, −1 where b
 
   // State.
   NodeVectors position_;  // deformed positions, mm
@@ -436,19 +414,13 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<Eigen::Vector3d> cluster_center_mm_;
   std::unique_ptr<ExplicitKernel> explicit_;              // explicit integrator only
   std::unique_ptr<msds_detail::TetLattice> tet_lattice_;  // the inversion count's layout
-  // Implicit Euler: per spring its forces and h·C_s + h²·K_s, the system's inverse diagonal, CG
-  // vectors (cg_velocity_: the new velocity being solved for).
-  // Per spring its elastic and damping force on node a along its direction (the block's dir):
-  // two scalars, not two vectors, since the pass that writes them and the one that sums them
-  // per node are memory-bound (the large case's implicit frames spent ~2/3 of their time in
-  // them, against ~1/3 in the CG).
-  struct SpringForceAlong {
-    double elastic_mn = 0.0;
-    double damping_mn = 0.0;
-  };
-  std::vector<SpringForceAlong> spring_force_along_;
-  std::vector<ImplicitSpringBlock> spring_block_;
-  std::vector<Eigen::Vector3d> inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
+  // Implicit Euler: the springs' forces and blocks by diagonal, each node's sums of them
+  // (node_*), its diagonal M + h² k_anchor (system_diagonal_), the system's inverse diagonal and
+  // the CG's vectors (cg_velocity_: the new velocity being solved for), by coordinate (SIMD).
+  std::unique_ptr<msds_detail::ImplicitLattice> implicit_lattice_;
+  NodeVectors node_elastic_, node_damping_, node_block_diagonal_;
+  std::vector<double> system_diagonal_;
+  NodeVectors inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
   std::vector<double> partial_a_, partial_b_, partial_c_, partial_d_, partial_e_;
   std::vector<std::uint8_t> partial_finite_, partial_runaway_;
   // The last implicit step's CG was stopped by the budget: its unfinished velocity (still in
