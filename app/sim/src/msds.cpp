@@ -177,7 +177,12 @@ MsdsEngine::MsdsEngine(MsdsIntegrator integrator, const geometry::TetMesh& mesh,
     : integrator_(integrator),
       settings_(settings),
       jobs_(jobs),
-      team_(std::make_unique<msds_detail::TaskTeam>(jobs)) {
+      // The implicit step on one thread: its stages are short (a 32×16×16 grid's CG iteration
+      // ~20 µs, vectorised), and handing each to a second thread cost more than it saved (frames
+      // of 24×12×12 and 32×16×16 grids 9.5 and 23.5 ms on one thread, 15.9 and 29.9 on two;
+      // engine_bench). The other core stays free for the frame's other tasks.
+      team_(std::make_unique<msds_detail::TaskTeam>(
+          integrator == MsdsIntegrator::kExplicitEuler ? jobs : nullptr)) {
   check_settings(settings);
   check_tet_model("MsdsEngine", mesh, tet_materials, fixed_nodes);
   rest_ = mesh.rest_positions_mm;
