@@ -463,8 +463,8 @@ void MsdsEngine::size_buffers() {
   mass_scaled_for_anchor_mn_per_mm_.assign(rest_.size(), 0.0);
   if (integrator_ == MsdsIntegrator::kImplicitEuler) {
     implicit_lattice_ = std::make_unique<msds_detail::ImplicitLattice>(rest_, springs_);
-    for (auto* buffer : {&node_elastic_, &node_damping_, &node_block_diagonal_, &inverse_diagonal_,
-                         &rhs_, &r_, &z_, &p_, &q_, &cg_velocity_}) {
+    for (auto* buffer : {&node_elastic_, &node_block_diagonal_, &inverse_diagonal_, &rhs_, &r_, &z_,
+                         &p_, &q_, &cg_velocity_}) {
       buffer->assign_zero(n);
     }
     system_diagonal_.assign(padded, 0.0);

@@ -61,9 +61,8 @@ void MsdsEngine::compute_spring_forces(double dt_s) {
   // Each spring once, by diagonal (msds_implicit_lattice.hpp); the node pass then sums them.
   msds_detail::ImplicitLattice& lattice = *implicit_lattice_;
   const auto position = read(position_.x, position_.y, position_.z);
-  const auto velocity = read(velocity_.x, velocity_.y, velocity_.z);
   for_each_chunk(lattice.range_count(),
-                 [&](int range) { lattice.compute_springs(range, position, velocity, dt_s); });
+                 [&](int range) { lattice.compute_springs(range, position, dt_s); });
 }
 
 void MsdsEngine::system_times(const NodeVectors& p, NodeVectors& q, bool pq) {
@@ -143,7 +142,6 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
     const int end = std::min(n, begin + kNodesPerChunk);
     lattice.sum_node_forces(
         begin, end, write(node_elastic_.x, node_elastic_.y, node_elastic_.z),
-        write(node_damping_.x, node_damping_.y, node_damping_.z),
         write(node_block_diagonal_.x, node_block_diagonal_.y, node_block_diagonal_.z));
     for (int i = begin; i < end; ++i) {
       if (anchor_of_node_[i] >= 0) {
@@ -151,7 +149,11 @@ MsdsEngine::StepResult MsdsEngine::implicit_euler_update(double dt_s) {
         anchor_force(i, anchor_elastic, anchor_damping);
         node_elastic_.set(i, node_elastic_[i] + anchor_elastic);
       }
-      if (held_[i]) release_if_pulled_away(i, node_elastic_[i] + node_damping_[i]);
+      if (held_[i]) {
+        release_if_pulled_away(
+            i, node_elastic_[i] +
+                   lattice.damping_force_on(i, read(velocity_.x, velocity_.y, velocity_.z)));
+      }
     }
     lattice.vector_kernels().start_rows(rows, begin, end);
     double rhs_squared = 0.0, rz = 0.0, rr = 0.0, rz_zero = 0.0, energy = 0.0;

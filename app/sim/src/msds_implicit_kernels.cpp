@@ -16,15 +16,12 @@ namespace {
 
 #define ULTRASIM_KERNEL_BODY [[gnu::always_inline]] inline
 
-ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, NodeArrays velocity,
-                                       const ImplicitSlots& s, double h, int first, int last) {
+ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, const ImplicitSlots& s, double h,
+                                       int first, int last) {
   const int o = s.offset;
   const double* x = position.x;
   const double* y = position.y;
   const double* z = position.z;
-  const double* vx = velocity.x;
-  const double* vy = velocity.y;
-  const double* vz = velocity.z;
   const double* stiffness = s.stiffness;
   const double* damping = s.damping;
   const double* rest_length = s.rest_length;
@@ -32,7 +29,6 @@ ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, NodeArrays velocity,
   double* dir_y = s.dir_y;
   double* dir_z = s.dir_z;
   double* elastic = s.elastic;
-  double* damping_force = s.damping_force;
   double* along = s.along;
   double* across = s.across;
   const double h2 = h * h;
@@ -54,8 +50,6 @@ ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, NodeArrays velocity,
     const double nx = dx * inverse;
     const double ny = dy * inverse;
     const double nz = dz * inverse;
-    const double relative_speed =
-        ((vx[j + o] - vx[j]) * nx + (vy[j + o] - vy[j]) * ny) + (vz[j + o] - vz[j]) * nz;
     const double stretched = 1.0 - rest * inverse;
     const double transverse = stretched > 0.0 ? stretched : 0.0;
     const double kh = h2 * k;
@@ -63,7 +57,6 @@ ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, NodeArrays velocity,
     dir_y[j] = ny;
     dir_z[j] = nz;
     elastic[j] = k * (length - rest);
-    damping_force[j] = damping[j] * relative_speed;
     along[j] = h * damping[j] + kh * (1.0 - transverse);
     across[j] = kh * transverse;
   }
@@ -72,14 +65,12 @@ ULTRASIM_KERNEL_BODY bool springs_body(NodeArrays position, NodeArrays velocity,
 
 ULTRASIM_KERNEL_BODY void node_sums_body(const ImplicitSlots* diagonals, int count, int begin,
                                          int end, MutableNodeArrays elastic,
-                                         MutableNodeArrays damping,
                                          MutableNodeArrays block_diagonal) {
   // A few nodes at a time, every diagonal summed into registers before one store (a pass per
-  // diagonal read and wrote nine arrays per node each time: two thirds of a starved step's start).
+  // diagonal read and wrote the sums' arrays per node each time).
   constexpr int kLanes = kImplicitSumLanes;
   for (int i0 = begin; i0 < end; i0 += kLanes) {
     double ex[kLanes] = {}, ey[kLanes] = {}, ez[kLanes] = {};
-    double cx[kLanes] = {}, cy[kLanes] = {}, cz[kLanes] = {};
     double bx[kLanes] = {}, by[kLanes] = {}, bz[kLanes] = {};
     for (int d = 0; d < count; ++d) {
       const ImplicitSlots& s = diagonals[d];
@@ -88,7 +79,6 @@ ULTRASIM_KERNEL_BODY void node_sums_body(const ImplicitSlots* diagonals, int cou
       const double* dir_y = s.dir_y + i0;
       const double* dir_z = s.dir_z + i0;
       const double* f = s.elastic + i0;
-      const double* c = s.damping_force + i0;
       const double* along = s.along + i0;
       const double* across = s.across + i0;
       const int o = s.offset;
@@ -96,9 +86,6 @@ ULTRASIM_KERNEL_BODY void node_sums_body(const ImplicitSlots* diagonals, int cou
         ex[l] += f[l] * dir_x[l];
         ey[l] += f[l] * dir_y[l];
         ez[l] += f[l] * dir_z[l];
-        cx[l] += c[l] * dir_x[l];
-        cy[l] += c[l] * dir_y[l];
-        cz[l] += c[l] * dir_z[l];
         bx[l] += along[l] * (dir_x[l] * dir_x[l]) + across[l];
         by[l] += along[l] * (dir_y[l] * dir_y[l]) + across[l];
         bz[l] += along[l] * (dir_z[l] * dir_z[l]) + across[l];
@@ -106,9 +93,6 @@ ULTRASIM_KERNEL_BODY void node_sums_body(const ImplicitSlots* diagonals, int cou
         ex[l] -= f[j] * dir_x[j];
         ey[l] -= f[j] * dir_y[j];
         ez[l] -= f[j] * dir_z[j];
-        cx[l] -= c[j] * dir_x[j];
-        cy[l] -= c[j] * dir_y[j];
-        cz[l] -= c[j] * dir_z[j];
         bx[l] += along[j] * (dir_x[j] * dir_x[j]) + across[j];
         by[l] += along[j] * (dir_y[j] * dir_y[j]) + across[j];
         bz[l] += along[j] * (dir_z[j] * dir_z[j]) + across[j];
@@ -118,9 +102,6 @@ ULTRASIM_KERNEL_BODY void node_sums_body(const ImplicitSlots* diagonals, int cou
       elastic.x[i0 + l] = ex[l];
       elastic.y[i0 + l] = ey[l];
       elastic.z[i0 + l] = ez[l];
-      damping.x[i0 + l] = cx[l];
-      damping.y[i0 + l] = cy[l];
-      damping.z[i0 + l] = cz[l];
       block_diagonal.x[i0 + l] = bx[l];
       block_diagonal.y[i0 + l] = by[l];
       block_diagonal.z[i0 + l] = bz[l];
@@ -245,15 +226,14 @@ ULTRASIM_KERNEL_BODY void cg_direction_body(const CgVectors& cg, double beta, in
   }
 }
 
-bool springs_portable(NodeArrays position, NodeArrays velocity, const ImplicitSlots& slots,
-                      double h, int first, int last) {
-  return springs_body(position, velocity, slots, h, first, last);
+bool springs_portable(NodeArrays position, const ImplicitSlots& slots, double h, int first,
+                      int last) {
+  return springs_body(position, slots, h, first, last);
 }
 
 void node_sums_portable(const ImplicitSlots* diagonals, int count, int begin, int end,
-                        MutableNodeArrays elastic, MutableNodeArrays damping,
-                        MutableNodeArrays block_diagonal) {
-  node_sums_body(diagonals, count, begin, end, elastic, damping, block_diagonal);
+                        MutableNodeArrays elastic, MutableNodeArrays block_diagonal) {
+  node_sums_body(diagonals, count, begin, end, elastic, block_diagonal);
 }
 
 void multiply_portable(const ImplicitSlots& slots, int slot_count, NodeArrays p, int begin, int end,
@@ -288,17 +268,15 @@ void cg_direction_portable(const CgVectors& cg, double beta, int begin, int end)
   cg_direction_body(cg, beta, begin, end);
 }
 
-[[gnu::target("avx2")]] bool springs_avx2(NodeArrays position, NodeArrays velocity,
-                                          const ImplicitSlots& slots, double h, int first,
-                                          int last) {
-  return springs_body(position, velocity, slots, h, first, last);
+[[gnu::target("avx2")]] bool springs_avx2(NodeArrays position, const ImplicitSlots& slots, double h,
+                                          int first, int last) {
+  return springs_body(position, slots, h, first, last);
 }
 
 [[gnu::target("avx2")]] void node_sums_avx2(const ImplicitSlots* diagonals, int count, int begin,
                                             int end, MutableNodeArrays elastic,
-                                            MutableNodeArrays damping,
                                             MutableNodeArrays block_diagonal) {
-  node_sums_body(diagonals, count, begin, end, elastic, damping, block_diagonal);
+  node_sums_body(diagonals, count, begin, end, elastic, block_diagonal);
 }
 
 [[gnu::target("avx2")]] void multiply_avx2(const ImplicitSlots& slots, int slot_count, NodeArrays p,

@@ -25,11 +25,11 @@ struct MutableNodeArrays {
 };
 
 // The springs (j, j + offset) of one diagonal, slot j, and what the spring pass leaves there:
-// its unit vector from j to j + offset, its elastic force k (l − L) and damping force
-// c (Δv · n) along it (on node j; node j + offset takes the opposite), and its block
-// h c n nᵀ + h² k [n nᵀ + t (I − n nᵀ)] = along n nᵀ + across I, t = max(0, 1 − L / l) (the
-// transverse term dropped for compressed springs). Empty slots have k = c = L = 0: zero forces
-// and blocks.
+// its unit vector from j to j + offset, its elastic force k (l − L) along it (on node j; node
+// j + offset takes the opposite), and its block h c n nᵀ + h² k [n nᵀ + t (I − n nᵀ)] =
+// along n nᵀ + across I, t = max(0, 1 − L / l) (the transverse term dropped for compressed
+// springs). Empty slots have k = c = L = 0: zero forces and blocks. (The damping force is only
+// wanted at held nodes, which compute it themselves.)
 struct ImplicitSlots {
   int offset = 0;
   const double* stiffness = nullptr;    // mN/mm
@@ -39,8 +39,7 @@ struct ImplicitSlots {
   double* dir_y = nullptr;
   double* dir_z = nullptr;
   double* elastic = nullptr;  // mN
-  double* damping_force = nullptr;
-  double* along = nullptr;  // kg
+  double* along = nullptr;    // kg
   double* across = nullptr;
 };
 
@@ -51,19 +50,17 @@ inline constexpr int kImplicitSumLanes = 4;
 inline constexpr double kImplicitCollapsedFraction = 1e-9;
 
 struct ImplicitKernels {
-  // Slots [first, last) from the positions (mm) and velocities (mm/s), time step h (s). Returns
-  // whether a slot holding a spring is collapsed (l ≤ kImplicitCollapsedFraction L, or not
-  // finite): its direction is then the caller's to set.
-  bool (*springs)(NodeArrays position, NodeArrays velocity, const ImplicitSlots& slots, double h,
-                  int first, int last);
+  // Slots [first, last) from the positions (mm), time step h (s). Returns whether a slot
+  // holding a spring is collapsed (l ≤ kImplicitCollapsedFraction L, or not finite): its
+  // direction is then the caller's to set.
+  bool (*springs)(NodeArrays position, const ImplicitSlots& slots, double h, int first, int last);
   // For each node i of [begin, end) (rounded up to whole kImplicitSumLanes, from a multiple of
-  // them): over the diagonals in order, + slot i's elastic and damping force vectors and its
-  // block's diagonal, then − the forces of slot i − offset, + its block's diagonal. Overwrites
-  // the outputs. Reads the slots' state from −offset to node_count + kImplicitSumLanes, zero
-  // outside the diagonal (its padding).
+  // them): over the diagonals in order, + slot i's elastic force vector and its block's
+  // diagonal, then − the force of slot i − offset, + its block's diagonal. Overwrites the
+  // outputs. Reads the slots' state from −offset to node_count + kImplicitSumLanes, zero outside
+  // the diagonal (its padding).
   void (*node_sums)(const ImplicitSlots* diagonals, int count, int begin, int end,
-                    MutableNodeArrays elastic, MutableNodeArrays damping,
-                    MutableNodeArrays block_diagonal);
+                    MutableNodeArrays elastic, MutableNodeArrays block_diagonal);
   // q_i += slot i's block × (p_i − p_{i+offset}) where i < slot_count, then −= slot (i −
   // offset)'s × (p_{i−offset} − p_i) where i ≥ offset, for i in [begin, end). `product` holds
   // the slots' products from max(0, begin − offset) on: scratch of end − begin + offset.

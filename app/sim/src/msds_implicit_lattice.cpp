@@ -15,8 +15,8 @@ void assign_zero(std::vector<double>& v, int size) {
 }
 
 void size_state(auto& state, int size) {
-  for (auto* v : {&state.dir_x, &state.dir_y, &state.dir_z, &state.elastic, &state.damping_force,
-                  &state.along, &state.across}) {
+  for (auto* v :
+       {&state.dir_x, &state.dir_y, &state.dir_z, &state.elastic, &state.along, &state.across}) {
     assign_zero(*v, size);
   }
 }
@@ -98,7 +98,6 @@ void ImplicitLattice::build_diagonals(std::span<const MsdsSpring> springs) {
                st.dir_y.data() + at,
                st.dir_z.data() + at,
                st.elastic.data() + at,
-               st.damping_force.data() + at,
                st.along.data() + at,
                st.across.data() + at};
     slots_.push_back(d.slots);
@@ -145,9 +144,8 @@ void ImplicitLattice::build_loose_springs(std::span<const MsdsSpring> springs) {
 }
 
 void ImplicitLattice::compute_one(int a, int b, double stiffness, double damping,
-                                  double rest_length, NodeArrays position, NodeArrays velocity,
-                                  double h, double& dir_x, double& dir_y, double& dir_z,
-                                  double& elastic, double& damping_force, double& along,
+                                  double rest_length, NodeArrays position, double h, double& dir_x,
+                                  double& dir_y, double& dir_z, double& elastic, double& along,
                                   double& across) const {
   const double dx = position.x[b] - position.x[a];
   const double dy = position.y[b] - position.y[a];
@@ -164,21 +162,17 @@ void ImplicitLattice::compute_one(int a, int b, double stiffness, double damping
     // Collapsed (or not finite): pushed apart along the rest direction.
     n = (rest_[b] - rest_[a]) / rest_length;
   }
-  const double relative_speed =
-      ((velocity.x[b] - velocity.x[a]) * n.x() + (velocity.y[b] - velocity.y[a]) * n.y()) +
-      (velocity.z[b] - velocity.z[a]) * n.z();
   const double kh = h * h * stiffness;
   dir_x = n.x();
   dir_y = n.y();
   dir_z = n.z();
   elastic = stiffness * (length - rest_length);
-  damping_force = damping * relative_speed;
   along = h * damping + kh * (1.0 - transverse);
   across = kh * transverse;
 }
 
-void ImplicitLattice::settle_collapsed(Diagonal& d, NodeArrays position, NodeArrays velocity,
-                                       double h, int first, int last) {
+void ImplicitLattice::settle_collapsed(Diagonal& d, NodeArrays position, double h, int first,
+                                       int last) {
   for (int j = first; j < last; ++j) {
     if (!(d.stiffness[j] > 0.0)) continue;
     const int b = j + d.offset;
@@ -189,56 +183,79 @@ void ImplicitLattice::settle_collapsed(Diagonal& d, NodeArrays position, NodeArr
       continue;
     }
     const ImplicitSlots& sl = d.slots;
-    compute_one(j, b, d.stiffness[j], d.damping[j], d.rest_length[j], position, velocity, h,
-                sl.dir_x[j], sl.dir_y[j], sl.dir_z[j], sl.elastic[j], sl.damping_force[j],
-                sl.along[j], sl.across[j]);
+    compute_one(j, b, d.stiffness[j], d.damping[j], d.rest_length[j], position, h, sl.dir_x[j],
+                sl.dir_y[j], sl.dir_z[j], sl.elastic[j], sl.along[j], sl.across[j]);
   }
 }
 
-void ImplicitLattice::compute_springs(int range, NodeArrays position, NodeArrays velocity,
-                                      double h) {
+void ImplicitLattice::compute_springs(int range, NodeArrays position, double h) {
   const int begin = range_begin(range);
   const int end = range_end(range);
   for (Diagonal& d : diagonals_) {
     const int last = std::min(end, d.slot_count);
     if (begin >= last) continue;
-    if (kernels_.springs(position, velocity, d.slots, h, begin, last)) {
-      settle_collapsed(d, position, velocity, h, begin, last);  // rare
+    if (kernels_.springs(position, d.slots, h, begin, last)) {
+      settle_collapsed(d, position, h, begin, last);  // rare
     }
   }
   SlotState& st = loose_state_;
   for (int s = loose_of_range_[range]; s < loose_of_range_[range + 1]; ++s) {
     const LooseSpring& l = loose_[s];
-    compute_one(l.a, l.b, l.stiffness, l.damping, l.rest_length, position, velocity, h, st.dir_x[s],
-                st.dir_y[s], st.dir_z[s], st.elastic[s], st.damping_force[s], st.along[s],
-                st.across[s]);
+    compute_one(l.a, l.b, l.stiffness, l.damping, l.rest_length, position, h, st.dir_x[s],
+                st.dir_y[s], st.dir_z[s], st.elastic[s], st.along[s], st.across[s]);
   }
 }
 
 void ImplicitLattice::sum_node_forces(int begin, int end, MutableNodeArrays elastic,
-                                      MutableNodeArrays damping,
                                       MutableNodeArrays block_diagonal) const {
-  kernels_.node_sums(slots_.data(), static_cast<int>(slots_.size()), begin, end, elastic, damping,
+  kernels_.node_sums(slots_.data(), static_cast<int>(slots_.size()), begin, end, elastic,
                      block_diagonal);
   if (loose_.empty()) return;
   const SlotState& st = loose_state_;
   for (int i = begin; i < end; ++i) {
     for (int e = loose_begin_[i]; e < loose_begin_[i + 1]; ++e) {
       const int s = loose_index_[e];
-      const double sign = loose_sign_[e];
-      const double f = sign * st.elastic[s];
-      const double c = sign * st.damping_force[s];
+      const double f = loose_sign_[e] * st.elastic[s];
       elastic.x[i] += f * st.dir_x[s];
       elastic.y[i] += f * st.dir_y[s];
       elastic.z[i] += f * st.dir_z[s];
-      damping.x[i] += c * st.dir_x[s];
-      damping.y[i] += c * st.dir_y[s];
-      damping.z[i] += c * st.dir_z[s];
       block_diagonal.x[i] += st.along[s] * (st.dir_x[s] * st.dir_x[s]) + st.across[s];
       block_diagonal.y[i] += st.along[s] * (st.dir_y[s] * st.dir_y[s]) + st.across[s];
       block_diagonal.z[i] += st.along[s] * (st.dir_z[s] * st.dir_z[s]) + st.across[s];
     }
   }
+}
+
+Eigen::Vector3d ImplicitLattice::damping_force_on(int node, NodeArrays velocity) const {
+  // c (Δv · n) n on the spring's a, Δv = v_b − v_a; the opposite on b.
+  const auto along_spring = [&](int a, int b, double damping, double nx, double ny,
+                                double nz) -> Eigen::Vector3d {
+    const double relative_speed =
+        ((velocity.x[b] - velocity.x[a]) * nx + (velocity.y[b] - velocity.y[a]) * ny) +
+        (velocity.z[b] - velocity.z[a]) * nz;
+    return Eigen::Vector3d(nx, ny, nz) * (damping * relative_speed);
+  };
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Diagonal& d : diagonals_) {
+    const ImplicitSlots& s = d.slots;
+    if (node < d.slot_count && d.damping[node] > 0.0) {
+      sum += along_spring(node, node + d.offset, d.damping[node], s.dir_x[node], s.dir_y[node],
+                          s.dir_z[node]);
+    }
+    const int below = node - d.offset;
+    if (below >= 0 && d.damping[below] > 0.0) {
+      sum -= along_spring(below, node, d.damping[below], s.dir_x[below], s.dir_y[below],
+                          s.dir_z[below]);
+    }
+  }
+  const SlotState& st = loose_state_;
+  for (int e = loose_begin_[node]; e < loose_begin_[node + 1]; ++e) {
+    const int s = loose_index_[e];
+    const LooseSpring& l = loose_[s];
+    sum +=
+        loose_sign_[e] * along_spring(l.a, l.b, l.damping, st.dir_x[s], st.dir_y[s], st.dir_z[s]);
+  }
+  return sum;
 }
 
 void ImplicitLattice::multiply(int range, const double* diagonal, NodeArrays p,

@@ -39,15 +39,18 @@ class ImplicitLattice {
   int range_begin(int range) const { return range * kNodesPerRange; }
   int range_end(int range) const;
 
-  // Every spring whose node a lies in the range: its direction, forces and block at the state,
-  // time step h (s).
-  void compute_springs(int range, NodeArrays position, NodeArrays velocity, double h);
-  // For the nodes [begin, end): Σ ± of their springs' elastic and damping forces (mN) and of
-  // their blocks' diagonals (kg). Overwrites the outputs there, and up to the next multiple of
+  // Every spring whose node a lies in the range: its direction, elastic force and block at the
+  // positions, time step h (s).
+  void compute_springs(int range, NodeArrays position, double h);
+  // For the nodes [begin, end): Σ ± of their springs' elastic forces (mN) and of their blocks'
+  // diagonals (kg). Overwrites the outputs there, and up to the next multiple of
   // kImplicitSumLanes past end (begin a multiple of it; outputs padded). After compute_springs of
   // every range.
-  void sum_node_forces(int begin, int end, MutableNodeArrays elastic, MutableNodeArrays damping,
+  void sum_node_forces(int begin, int end, MutableNodeArrays elastic,
                        MutableNodeArrays block_diagonal) const;
+  // The springs' damping force on one node, c (Δv · n) n over its springs (mN), along the
+  // directions compute_springs found. For the few nodes that want it (held on the probe).
+  Eigen::Vector3d damping_force_on(int node, NodeArrays velocity) const;
   // q = diagonal ∘ p + Σ over each node's springs of their blocks × (p_node − p_other), on the
   // range's nodes (diagonal: one scalar per node, kg). After compute_springs of every range; one
   // call per range at a time.
@@ -62,7 +65,7 @@ class ImplicitLattice {
  private:
   // A spring's forces and block, in the slots' terms.
   struct SlotState {
-    std::vector<double> dir_x, dir_y, dir_z, elastic, damping_force, along, across;
+    std::vector<double> dir_x, dir_y, dir_z, elastic, along, across;
   };
   struct Diagonal {
     int offset = 0;
@@ -83,14 +86,12 @@ class ImplicitLattice {
   void build_loose_springs(std::span<const MsdsSpring> springs);
   // A collapsed spring's direction is its rest direction (pushed apart along it): the slots the
   // kernel flagged, one by one.
-  void settle_collapsed(Diagonal& d, NodeArrays position, NodeArrays velocity, double h, int first,
-                        int last);
+  void settle_collapsed(Diagonal& d, NodeArrays position, double h, int first, int last);
   // One spring's slot values, one by one: the kernel's arithmetic, the rest direction where it
   // is collapsed.
   void compute_one(int a, int b, double stiffness, double damping, double rest_length,
-                   NodeArrays position, NodeArrays velocity, double h, double& dir_x, double& dir_y,
-                   double& dir_z, double& elastic, double& damping_force, double& along,
-                   double& across) const;
+                   NodeArrays position, double h, double& dir_x, double& dir_y, double& dir_z,
+                   double& elastic, double& along, double& across) const;
 
   ImplicitKernels kernels_;
   ImplicitVectorKernels vector_kernels_;

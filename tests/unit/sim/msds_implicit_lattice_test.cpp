@@ -1,7 +1,8 @@
 // The implicit MSDS's springs by diagonal (internal: app/sim/src/msds_implicit_lattice.hpp): its
 // forces, blocks and products against a spring-by-spring reference written here in plain Eigen
 // (each spring from each of its nodes, as the engine did before), over several ranges, with
-// collapsed and loose springs; and the AVX2 build of its loops bitwise against the portable one.
+// collapsed and loose springs, and the damping force it gives a node on demand; and the AVX2
+// build of its loops bitwise against the portable one.
 
 #include "../../../app/sim/src/msds_implicit_lattice.hpp"
 
@@ -125,10 +126,10 @@ TEST(ImplicitLattice, SumsAndProductsMatchEachSpringTakenFromEachOfItsNodes) {
     diagonal[i] = 1e-6 * (1.0 + unit(rng) * unit(rng));
   }
   for (int r = 0; r < lattice.range_count(); ++r) {
-    lattice.compute_springs(r, position.read(), velocity.read(), kH);
+    lattice.compute_springs(r, position.read(), kH);
   }
-  Vectors elastic(n), damping(n), block_diagonal(n);
-  lattice.sum_node_forces(0, n, elastic.write(), damping.write(), block_diagonal.write());
+  Vectors elastic(n), block_diagonal(n);
+  lattice.sum_node_forces(0, n, elastic.write(), block_diagonal.write());
   for (int r = 0; r < lattice.range_count(); ++r) {
     lattice.multiply(r, diagonal.data(), p.read(), q.write());
   }
@@ -155,7 +156,9 @@ TEST(ImplicitLattice, SumsAndProductsMatchEachSpringTakenFromEachOfItsNodes) {
   for (int i = 0; i < n; ++i) {
     ASSERT_LT((elastic[i] - want_elastic[i]).lpNorm<Eigen::Infinity>(), 1e-12 * elastic_scale)
         << "node " << i;
-    ASSERT_LT((damping[i] - want_damping[i]).lpNorm<Eigen::Infinity>(), 1e-12 * damping_scale)
+    ASSERT_LT(
+        (lattice.damping_force_on(i, velocity.read()) - want_damping[i]).lpNorm<Eigen::Infinity>(),
+        1e-12 * damping_scale)
         << "node " << i;
     ASSERT_LT((block_diagonal[i] - want_block[i]).lpNorm<Eigen::Infinity>(), 1e-12 * block_scale)
         << "node " << i;
@@ -193,9 +196,9 @@ TEST(ImplicitLattice, Avx2LoopsGiveBitwiseWhatThePortableOnesGive) {
   };
   const auto run = [&](ImplicitLattice& lattice, Outputs& out) {
     for (int r = 0; r < lattice.range_count(); ++r) {
-      lattice.compute_springs(r, position.read(), velocity.read(), kH);
+      lattice.compute_springs(r, position.read(), kH);
     }
-    lattice.sum_node_forces(0, n, out.elastic.write(), out.damping.write(), out.block.write());
+    lattice.sum_node_forces(0, n, out.elastic.write(), out.block.write());
     for (int r = 0; r < lattice.range_count(); ++r) {
       lattice.multiply(r, diagonal.data(), velocity.read(), out.q.write());
     }
@@ -215,10 +218,10 @@ TEST(ImplicitLattice, Avx2LoopsGiveBitwiseWhatThePortableOnesGive) {
   Outputs a(n), f(n);
   run(portable, a);
   run(fastest, f);
-  for (const auto& [x, y] : {std::pair{&a.elastic, &f.elastic}, std::pair{&a.damping, &f.damping},
-                             std::pair{&a.block, &f.block}, std::pair{&a.q, &f.q},
-                             std::pair{&a.inverse, &f.inverse}, std::pair{&a.rhs, &f.rhs},
-                             std::pair{&a.r, &f.r}, std::pair{&a.z, &f.z}, std::pair{&a.p, &f.p}}) {
+  for (const auto& [x, y] :
+       {std::pair{&a.elastic, &f.elastic}, std::pair{&a.block, &f.block}, std::pair{&a.q, &f.q},
+        std::pair{&a.inverse, &f.inverse}, std::pair{&a.rhs, &f.rhs}, std::pair{&a.r, &f.r},
+        std::pair{&a.z, &f.z}, std::pair{&a.p, &f.p}}) {
     EXPECT_EQ(x->x, y->x);
     EXPECT_EQ(x->y, y->y);
     EXPECT_EQ(x->z, y->z);

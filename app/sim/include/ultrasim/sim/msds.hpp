@@ -421,11 +421,11 @@ class MsdsEngine final : public DeformationEngine {
   std::vector<Eigen::Vector3d> cluster_center_mm_;
   std::unique_ptr<ExplicitKernel> explicit_;              // explicit integrator only
   std::unique_ptr<msds_detail::TetLattice> tet_lattice_;  // the inversion count's layout
-  // Implicit Euler: the springs' forces and blocks by diagonal, each node's sums of them
+  // Implicit Euler: the springs' elastic forces and blocks by diagonal, each node's sums of them
   // (node_*), its diagonal M + h² k_anchor (system_diagonal_), the system's inverse diagonal and
   // the CG's vectors (cg_velocity_: the new velocity being solved for), by coordinate (SIMD).
   std::unique_ptr<msds_detail::ImplicitLattice> implicit_lattice_;
-  NodeVectors node_elastic_, node_damping_, node_block_diagonal_;
+  NodeVectors node_elastic_, node_block_diagonal_;
   std::vector<double> system_diagonal_;
   NodeVectors inverse_diagonal_, rhs_, r_, z_, p_, q_, cg_velocity_;
   std::vector<double> partial_a_, partial_b_, partial_c_, partial_d_, partial_e_;
