@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <tuple>
 #include <vector>
 
 #include "msds_chunks.hpp"
@@ -12,7 +11,6 @@
 
 namespace ultrasim::sim {
 
-using msds_detail::chunk_count;
 using msds_detail::kNodesPerChunk;
 
 // A range's product fills whole node chunks' partial sums; a chunk's node sums start on a whole
@@ -30,8 +28,8 @@ static_assert(kNodesPerChunk % msds_detail::kImplicitSumLanes == 0);
 // dropped for compressed springs, where it is negative, so the system stays symmetric positive
 // definite and CG applies at any h (the usual choice, Choi & Ko 2002). C_s = c n nᵀ; the damping
 // force's derivative with respect to position is neglected (Baraff & Witkin). Held and pinned
-// nodes have v1 = 0 and drop out of the system. Jacobi-preconditioned CG, matrix-free: each node
-// gathers h C_s + h² K_s (p_i − p_j) over its springs.
+// nodes have v1 = 0 and drop out of the system. Jacobi-preconditioned CG, matrix-free: each
+// spring's (h C_s + h² K_s)(p_a − p_b) once, summed ± at its two nodes (msds_implicit_lattice.hpp).
 //
 // A step whose CG the budget stopped keeps the move it found but not its velocity. The velocity
 // is then the solve's unfinished answer, and carried on as the next step's momentum and warm
