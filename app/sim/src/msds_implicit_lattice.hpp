@@ -34,6 +34,9 @@ class ImplicitLattice {
                   std::span<const MsdsSpring> springs,
                   const ImplicitKernels& kernels = fastest_implicit_kernels(),
                   const ImplicitVectorKernels& vector_kernels = fastest_implicit_vector_kernels());
+  // The slots point into the lattice's own arrays.
+  ImplicitLattice(const ImplicitLattice&) = delete;
+  ImplicitLattice& operator=(const ImplicitLattice&) = delete;
 
   int range_count() const;
   int range_begin(int range) const { return range * kNodesPerRange; }
@@ -99,7 +102,7 @@ class ImplicitLattice {
   std::vector<Eigen::Vector3d> rest_;
   std::vector<Diagonal> diagonals_;
   std::vector<ImplicitSlots> slots_;  // each diagonal's, in offset order
-  int front_padding_ = 0;             // zero slots before each diagonal's first: its largest offset
+  int front_padding_ = 0;             // zero slots before each diagonal's first: the largest offset
   // Loose springs in spring order (by a), their state by the same index, where each range's
   // begin (by a), and per node (CSR) the loose springs it is in, with +1 as a and −1 as b.
   std::vector<LooseSpring> loose_;
