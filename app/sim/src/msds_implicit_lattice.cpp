@@ -21,16 +21,6 @@ void size_state(auto& state, int size) {
   }
 }
 
-int largest_dense_offset(std::span<const MsdsSpring> springs, int node_count) {
-  std::map<int, int> springs_per_offset;
-  for (const auto& s : springs) ++springs_per_offset[s.b - s.a];
-  int largest = 0;
-  for (const auto& [offset, count] : springs_per_offset) {
-    if (count >= SpringLattice::kMinDiagonalFill * (node_count - offset)) largest = offset;
-  }
-  return largest;
-}
-
 }  // namespace
 
 ImplicitLattice::ImplicitLattice(std::span<const Eigen::Vector3d> rest_positions_mm,
@@ -43,11 +33,10 @@ ImplicitLattice::ImplicitLattice(std::span<const Eigen::Vector3d> rest_positions
       rest_(rest_positions_mm.begin(), rest_positions_mm.end()) {
   build_diagonals(springs);
   build_loose_springs(springs);
-  int largest_offset = 0;
-  for (const Diagonal& d : diagonals_) largest_offset = std::max(largest_offset, d.offset);
   product_scratch_.resize(static_cast<std::size_t>(range_count()));
-  for (auto& scratch : product_scratch_)
-    assign_zero(scratch, 3 * (kNodesPerRange + largest_offset));
+  for (auto& scratch : product_scratch_) {
+    assign_zero(scratch, 3 * (kNodesPerRange + front_padding_));  // the largest offset
+  }
 }
 
 int ImplicitLattice::range_count() const {
@@ -59,13 +48,11 @@ int ImplicitLattice::range_end(int range) const {
 }
 
 void ImplicitLattice::build_diagonals(std::span<const MsdsSpring> springs) {
-  front_padding_ = largest_dense_offset(springs, node_count_);
-  std::map<int, int> springs_per_offset;
-  for (const auto& s : springs) ++springs_per_offset[s.b - s.a];
+  const std::vector<int> offsets = dense_diagonal_offsets(springs, node_count_);
+  front_padding_ = offsets.empty() ? 0 : offsets.back();
   std::map<int, std::size_t> diagonal_of_offset;
-  for (const auto& [offset, count] : springs_per_offset) {
+  for (const int offset : offsets) {
     const int slots = node_count_ - offset;
-    if (count < SpringLattice::kMinDiagonalFill * slots) continue;
     diagonal_of_offset[offset] = diagonals_.size();
     Diagonal d;
     d.offset = offset;
@@ -123,7 +110,6 @@ void ImplicitLattice::build_loose_springs(std::span<const MsdsSpring> springs) {
                              [&](const LooseSpring& l) { return l.a < first_node; }) -
         loose_.begin());
   }
-  loose_of_range_[range_count()] = static_cast<int>(loose_.size());
   loose_begin_.assign(static_cast<std::size_t>(node_count_ + 1), 0);
   for (const auto& l : loose_) {
     ++loose_begin_[l.a + 1];

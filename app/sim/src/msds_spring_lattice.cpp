@@ -33,13 +33,20 @@ SpringLattice::SpringLattice(std::span<const Eigen::Vector3d> rest_positions_mm,
   build_loose_springs(springs);
 }
 
-void SpringLattice::build_diagonals(std::span<const MsdsSpring> springs) {
+std::vector<int> dense_diagonal_offsets(std::span<const MsdsSpring> springs, int node_count) {
   std::map<int, int> springs_per_offset;
   for (const auto& s : springs) ++springs_per_offset[s.b - s.a];
-  std::map<int, std::size_t> diagonal_of_offset;
+  std::vector<int> offsets;
   for (const auto& [offset, count] : springs_per_offset) {
+    if (count >= kMinDiagonalFill * (node_count - offset)) offsets.push_back(offset);
+  }
+  return offsets;
+}
+
+void SpringLattice::build_diagonals(std::span<const MsdsSpring> springs) {
+  std::map<int, std::size_t> diagonal_of_offset;
+  for (const int offset : dense_diagonal_offsets(springs, node_count_)) {
     const int slots = node_count_ - offset;
-    if (count < kMinDiagonalFill * slots) continue;
     diagonal_of_offset[offset] = diagonals_.size();
     Diagonal d;
     d.offset = offset;

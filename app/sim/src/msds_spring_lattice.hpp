@@ -29,12 +29,17 @@
 
 namespace ultrasim::sim::msds_detail {
 
+// A diagonal is kept dense when at least this fraction of its slots hold a spring: below it,
+// computing each of its springs twice, one by one, is cheaper than its empty slots.
+inline constexpr double kMinDiagonalFill = 0.25;
+
+// The offsets b − a of the diagonals kept dense (at least kMinDiagonalFill of their
+// node_count − offset slots hold a spring), increasing: where the explicit lattice and the
+// implicit one (msds_implicit_lattice.hpp) lay their springs out; the others' springs are loose.
+std::vector<int> dense_diagonal_offsets(std::span<const MsdsSpring> springs, int node_count);
+
 class SpringLattice {
  public:
-  // A diagonal is kept dense when at least this fraction of its slots hold a spring: below it,
-  // computing each of its springs twice, one by one, is cheaper than its empty slots.
-  static constexpr double kMinDiagonalFill = 0.25;
-
   // rest_positions_mm: the nodes at rest; springs: a < b, stiffness > 0; damping force =
   // stiffness × damping_per_stiffness_s × the relative velocity along the spring. Allocates.
   SpringLattice(std::span<const Eigen::Vector3d> rest_positions_mm,

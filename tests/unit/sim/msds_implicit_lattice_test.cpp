@@ -13,12 +13,14 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "lattice_springs.hpp"
 #include "ultrasim/sim/msds.hpp"
 
 namespace ultrasim::sim::msds_detail {
 namespace {
 
 using testing::Block;
+using testing::springs_with_a_loose_one;
 
 constexpr double kH = 0.004;  // s
 
@@ -27,17 +29,6 @@ Block make_block() {
   return testing::make_block({24, 16, 12}, [](const Eigen::Vector3d& c) {
     return c.x() < 0 ? Material{1, "soft", 20.0} : Material{2, "stiff", 45.0};
   });
-}
-
-// The engine's springs, with an extra loose spring between two far nodes.
-std::vector<MsdsSpring> springs_of(const Block& b) {
-  const MsdsEngine engine(MsdsIntegrator::kImplicitEuler, b.mesh, b.materials, b.fixed,
-                          MsdsSettings{});
-  std::vector<MsdsSpring> springs(engine.springs().begin(), engine.springs().end());
-  const int far = b.mesh.node_count() - 3;
-  springs.push_back(
-      {2, far, (b.mesh.rest_positions_mm[far] - b.mesh.rest_positions_mm[2]).norm(), 55.0, 5.5});
-  return springs;
 }
 
 struct Vectors {
@@ -108,7 +99,7 @@ TEST(ImplicitLattice, SumsAndProductsMatchEachSpringTakenFromEachOfItsNodes) {
   const Block b = make_block();
   const int n = b.mesh.node_count();
   ASSERT_GT(n, ImplicitLattice::kNodesPerRange);
-  const std::vector<MsdsSpring> springs = springs_of(b);
+  const std::vector<MsdsSpring> springs = springs_with_a_loose_one(b);
   ImplicitLattice lattice(b.mesh.rest_positions_mm, springs);
   ASSERT_GE(lattice.range_count(), 2);
   ASSERT_GT(lattice.diagonal_count(), 3);
@@ -171,7 +162,7 @@ TEST(ImplicitLattice, SumsAndProductsMatchEachSpringTakenFromEachOfItsNodes) {
 TEST(ImplicitLattice, Avx2LoopsGiveBitwiseWhatThePortableOnesGive) {
   const Block b = make_block();
   const int n = b.mesh.node_count();
-  const std::vector<MsdsSpring> springs = springs_of(b);
+  const std::vector<MsdsSpring> springs = springs_with_a_loose_one(b);
   ImplicitLattice portable(b.mesh.rest_positions_mm, springs, portable_implicit_kernels(),
                            portable_implicit_vector_kernels());
   ImplicitLattice fastest(b.mesh.rest_positions_mm, springs);

@@ -14,6 +14,7 @@
 #include "../../../app/sim/src/msds_task_team.hpp"
 #include "../../../app/sim/src/msds_tet_lattice.hpp"
 #include "block_fixture.hpp"
+#include "lattice_springs.hpp"
 #include "two_thread_jobs.hpp"
 #include "ultrasim/sim/msds.hpp"
 
@@ -21,23 +22,12 @@ namespace ultrasim::sim::msds_detail {
 namespace {
 
 using testing::Block;
+using testing::springs_with_a_loose_one;
 
 Block make_block() {
   return testing::make_block({11, 6, 7}, [](const Eigen::Vector3d& c) {
     return c.x() < 0 ? Material{1, "soft", 20.0} : Material{2, "stiff", 45.0};
   });
-}
-
-// The engine's springs for a block, with an extra loose spring between two far nodes (its offset
-// lies on no dense diagonal).
-std::vector<MsdsSpring> springs_of(const Block& b) {
-  const MsdsEngine engine(MsdsIntegrator::kExplicitEuler, b.mesh, b.materials, b.fixed,
-                          MsdsSettings{});
-  std::vector<MsdsSpring> springs(engine.springs().begin(), engine.springs().end());
-  const int far = b.mesh.node_count() - 3;
-  springs.push_back(
-      {2, far, (b.mesh.rest_positions_mm[far] - b.mesh.rest_positions_mm[2]).norm(), 55.0, 5.5});
-  return springs;
 }
 
 // A perturbed state: every node moved and moving a little; node 0 squeezed onto its +x neighbour
@@ -101,7 +91,7 @@ bool has_avx2_kernels() {
 TEST(MsdsKernels, SweepsSplitIntoRangesAndBlocksGiveBitwiseTheSameForces) {
   const Block b = make_block();
   const int n = b.mesh.node_count();
-  const SpringLattice lattice(b.mesh.rest_positions_mm, springs_of(b), 0.1);
+  const SpringLattice lattice(b.mesh.rest_positions_mm, springs_with_a_loose_one(b), 0.1);
   EXPECT_GT(lattice.diagonal_count(), 3);
   EXPECT_EQ(lattice.loose_spring_count(), 1);
   const FloatNodeState state = perturbed_state(b);
@@ -119,7 +109,7 @@ TEST(MsdsKernels, SweepsSplitIntoRangesAndBlocksGiveBitwiseTheSameForces) {
 
 TEST(MsdsKernels, AtRestEveryForceIsExactlyZero) {
   const Block b = make_block();
-  const SpringLattice lattice(b.mesh.rest_positions_mm, springs_of(b), 0.1);
+  const SpringLattice lattice(b.mesh.rest_positions_mm, springs_with_a_loose_one(b), 0.1);
   FloatNodeState rest;
   rest.assign_zero(b.mesh.node_count());
   for (int i = 0; i < b.mesh.node_count(); ++i) {
@@ -137,7 +127,7 @@ TEST(MsdsKernels, Avx2SpringForcesEqualThePortableOnesBitwise) {
   if (!has_avx2_kernels()) GTEST_SKIP() << "no AVX2 on this CPU";
   const Block b = make_block();
   const int n = b.mesh.node_count();
-  const auto springs = springs_of(b);
+  const auto springs = springs_with_a_loose_one(b);
   const SpringLattice portable(b.mesh.rest_positions_mm, springs, 0.1, portable_kernels());
   const SpringLattice avx2(b.mesh.rest_positions_mm, springs, 0.1, fastest_kernels());
   const FloatNodeState state = perturbed_state(b);
