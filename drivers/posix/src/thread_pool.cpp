@@ -23,11 +23,7 @@ ThreadPool::ThreadPool(int thread_count, const RealtimeRequest* realtime) {
 }
 
 ThreadPool::~ThreadPool() {
-  {
-    std::lock_guard lock(mutex_);
-    stopping_ = true;
-  }
-  wake_.notify_all();
+  gate_.stop();
   for (auto& w : workers_) w.join();
 }
 
@@ -40,18 +36,9 @@ void ThreadPool::drain() {
 
 void ThreadPool::worker_loop() {
   std::uint64_t seen = 0;
-  for (;;) {
-    {
-      std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || batch_ != seen; });
-      if (stopping_) return;
-      seen = batch_;
-    }
+  while (gate_.join_next(seen)) {
     drain();
-    {
-      std::lock_guard lock(mutex_);
-      if (--busy_workers_ == 0) done_.notify_one();
-    }
+    gate_.leave();
   }
 }
 
@@ -61,20 +48,15 @@ void ThreadPool::run(int task_count, void (*task)(void*, int), void* context) {
     for (int i = 0; i < task_count; ++i) task(context, i);
     return;
   }
-  {
-    std::lock_guard lock(mutex_);
-    task_ = task;
-    context_ = context;
-    task_count_ = task_count;
-    next_.store(0, std::memory_order_relaxed);
-    busy_workers_ = static_cast<int>(workers_.size());
-    ++batch_;
-  }
-  wake_.notify_all();
+  task_ = task;
+  context_ = context;
+  task_count_ = task_count;
+  next_.store(0, std::memory_order_relaxed);
+  gate_.open();
   drain();
-  // Every worker must leave the batch before the next run() may overwrite it.
-  std::unique_lock lock(mutex_);
-  done_.wait(lock, [&] { return busy_workers_ == 0; });
+  // Every worker inside the batch must leave it before the next run() may overwrite it; one
+  // still asleep finds it closed.
+  gate_.close_and_wait();
 }
 
 }  // namespace ultrasim::drivers::posix

@@ -24,6 +24,17 @@ TEST(ThreadPool, RunsEveryTaskExactlyOnce) {
   }
 }
 
+// Short runs back to back: workers often wake after the caller has done every task and moved on
+// (WorkerGate); none may run a task of a batch it came late to, or miss one it joined.
+TEST(ThreadPool, ShortRunsBackToBackRunEachTaskOnceWhereverTheWorkersAre) {
+  ThreadPool pool(3);
+  std::vector<std::atomic<int>> hits(3 * 20000);
+  for (int round = 0; round < 20000; ++round) {
+    hal::parallel_for(pool, 3, [&](int i) { hits[3 * round + i].fetch_add(1); });
+  }
+  for (const auto& h : hits) ASSERT_EQ(h.load(), 1);
+}
+
 TEST(ThreadPool, UsesMoreThanOneThreadForSlowTasks) {
   ThreadPool pool(2);
   std::mutex m;

@@ -1,21 +1,20 @@
 #pragma once
 
 #include <atomic>
-#include <condition_variable>
-#include <cstdint>
-#include <mutex>
 #include <thread>
 #include <vector>
 
 #include "ultrasim/drivers/posix/background_thread.hpp"
 #include "ultrasim/drivers/posix/realtime.hpp"
+#include "ultrasim/drivers/posix/worker_gate.hpp"
 #include "ultrasim/hal/job_system.hpp"
 
 namespace ultrasim::drivers::posix {
 
 // hal::JobSystem on a fixed set of worker threads started once. run() wakes the workers, hands
-// out task indices through an atomic counter (the caller takes its share too) and waits until
-// every task has finished. Nothing is allocated per run. post_background() goes to one more
+// out task indices through an atomic counter (the caller takes its share too, and all of them
+// while no worker has come) and waits until every task has finished, not for workers that took
+// none (WorkerGate). Nothing is allocated per run. post_background() goes to one more
 // thread at idle priority (BackgroundThread), never realtime.
 class ThreadPool final : public hal::JobSystem {
  public:
@@ -42,12 +41,8 @@ class ThreadPool final : public hal::JobSystem {
 
   std::vector<std::thread> workers_;
   std::vector<ThreadRealtime> worker_realtime_;
-  std::mutex mutex_;
-  std::condition_variable wake_, done_;
-  std::uint64_t batch_ = 0;  // increments per run(); workers wait for a new one
-  int busy_workers_ = 0;     // workers still inside the current batch
-  bool stopping_ = false;
-  // The current batch, read by workers after they see batch_ change (under mutex_).
+  WorkerGate gate_;
+  // The current batch, written before the gate opens, read by the workers that join it.
   void (*task_)(void*, int) = nullptr;
   void* context_ = nullptr;
   int task_count_ = 0;
