@@ -43,6 +43,17 @@ sched::TickReport FrameLoop::run_frame(const std::optional<hal::PoseSample>& sam
   return report;
 }
 
+FrameLoop::OtherTasksUs FrameLoop::last_other_tasks_us() const {
+  const auto ran_last_tick = [this](const char* name) -> std::int64_t {
+    const sched::TaskStats* stats = scheduler_.find(name);
+    return stats != nullptr && stats->last_run_tick == scheduler_.tick_count() - 1
+               ? stats->last_run_us
+               : 0;
+  };
+  return {ran_last_tick(kBscan), ran_last_tick(kView),
+          std::min(ran_last_tick(kRender), render_budget_us_)};
+}
+
 void FrameLoop::simulate(void* self, const sched::TaskTick& tick) {
   auto* loop = static_cast<FrameLoop*>(self);
   // The method spends at most its budget, and never the time reserved for the render: past the

@@ -458,6 +458,10 @@ std::filesystem::path run_headless(const HeadlessRunOptions& options, const hal:
       second.slowest_frame_us = capped_us;
       second.slowest_frame_simulation_us = loop.last_simulation_us();
       second.slowest_frame_method = method_key;
+      const FrameLoop::OtherTasksUs others = loop.last_other_tasks_us();
+      second.slowest_frame_bscan_us = others.bscan;
+      second.slowest_frame_view_us = others.view;
+      second.slowest_frame_render_us = others.render_capped;
     }
     if (report.frames % frames_per_second == 0) {
       second.frame = frame;

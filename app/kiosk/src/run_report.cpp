@@ -181,7 +181,10 @@ void write_report_json(const std::filesystem::path& path, const RunReport& r) {
         << ", \"max_gap_mm\": " << s.max_gap_mm << ", \"late_frames\": " << s.late_frames
         << ", \"slowest_frame_us\": " << s.slowest_frame_us
         << ", \"slowest_frame_simulation_us\": " << s.slowest_frame_simulation_us
-        << ", \"slowest_frame_method\": \"" << s.slowest_frame_method << "\"}";
+        << ", \"slowest_frame_method\": \"" << s.slowest_frame_method
+        << "\", \"slowest_frame_bscan_us\": " << s.slowest_frame_bscan_us
+        << ", \"slowest_frame_view_us\": " << s.slowest_frame_view_us
+        << ", \"slowest_frame_render_us\": " << s.slowest_frame_render_us << "}";
   }
   out << "]\n}\n";
 

@@ -101,6 +101,8 @@ TickReport Scheduler::tick() {
     const std::int64_t took_us = clock_.now_us() - task_start_us;
     remember_run(slot, took_us);
     stats.time.record(took_us);
+    stats.last_run_tick = ticks_;
+    stats.last_run_us = took_us;
     ++stats.runs;
     if (took_us > slot.spec.budget_us) ++stats.overruns;
     ++report.tasks_run;

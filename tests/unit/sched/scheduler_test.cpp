@@ -244,6 +244,28 @@ TEST(Scheduler, AnOptionalTaskStarvedForItsSlipLimitRunsAnywayAndIsCounted) {
   EXPECT_EQ(scheduler.find("bscan")->runs, 3);
 }
 
+// Each task's latest run (its tick and time): what the report shows of a slow frame's parts. A
+// skipped task keeps its last run's, so a frame that skipped it is told by the tick.
+TEST(Scheduler, RemembersEachTasksLatestRunAndItsTick) {
+  hal::ManualClock clock;
+  FakeTask solve{&clock, 2'000, "solve"}, bscan{&clock, 3'000, "bscan"};
+  const std::vector<TaskSpec> table{spec_for(solve, 0, 12'000, 0, true),
+                                    spec_for(bscan, 0, 6'000, 1)};
+  Scheduler scheduler(clock, table, {60.0, 16'667});
+  EXPECT_EQ(scheduler.find("bscan")->last_run_tick, -1);
+  scheduler.tick();
+  EXPECT_EQ(scheduler.find("solve")->last_run_tick, 0);
+  EXPECT_EQ(scheduler.find("solve")->last_run_us, 2'000);
+  EXPECT_EQ(scheduler.find("bscan")->last_run_tick, 0);
+  EXPECT_EQ(scheduler.find("bscan")->last_run_us, 3'000);
+  solve.cost_us = 15'000;  // no time left for the B-scan
+  scheduler.tick();
+  EXPECT_EQ(scheduler.find("solve")->last_run_tick, 1);
+  EXPECT_EQ(scheduler.find("solve")->last_run_us, 15'000);
+  EXPECT_EQ(scheduler.find("bscan")->last_run_tick, 0);
+  EXPECT_EQ(scheduler.find("bscan")->last_run_us, 3'000);
+}
+
 TEST(Scheduler, MandatoryTasksRunEvenWhenTheBudgetIsSpentAndTheMissIsCounted) {
   hal::ManualClock clock;
   FakeTask solve{&clock, 20'000, "solve"}, render{&clock, 3'000, "render"},

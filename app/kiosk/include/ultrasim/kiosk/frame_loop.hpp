@@ -67,6 +67,14 @@ class FrameLoop {
   std::int64_t last_frame_render_capped_us() const { return last_render_capped_us_; }
   // How long the last frame's simulation took, µs.
   std::int64_t last_simulation_us() const { return last_simulation_us_; }
+  // How long the last frame's B-scan, 3D view and rendering (at most its reserve) took, µs; 0
+  // for a task the frame skipped.
+  struct OtherTasksUs {
+    std::int64_t bscan = 0;
+    std::int64_t view = 0;
+    std::int64_t render_capped = 0;
+  };
+  OtherTasksUs last_other_tasks_us() const;
 
   // What the simulation did this frame.
   const FrameOutcome& outcome() const { return outcome_; }

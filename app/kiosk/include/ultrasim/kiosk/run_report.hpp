@@ -122,8 +122,9 @@ struct RunReport {
   // Once a second of frames, the strongest press and the widest stitched seam over that second
   // (its last frame): where a run's largest figures came from, and how they grew. And where its
   // late frames came from: how many of the second's frames were over the budget with the
-  // rendering at its reserve, and its slowest frame's time (so measured), simulation time and
-  // method, late or not.
+  // rendering at its reserve, and its slowest frame's time (so measured), method and its tasks'
+  // times (the rendering at its reserve; what is left of the frame went between them: the
+  // scheduler, and the host's other threads), late or not.
   struct SecondSample {
     std::int64_t frame = 0;
     double max_contact_force_n = 0.0;
@@ -132,6 +133,9 @@ struct RunReport {
     std::int64_t slowest_frame_us = 0;
     std::int64_t slowest_frame_simulation_us = 0;
     std::string slowest_frame_method;
+    std::int64_t slowest_frame_bscan_us = 0;
+    std::int64_t slowest_frame_view_us = 0;
+    std::int64_t slowest_frame_render_us = 0;
   };
   std::vector<SecondSample> per_second;
   std::int64_t memory_baseline_frame = 0;

@@ -71,11 +71,13 @@ struct SchedulerSettings {
 // One task's accounting since the scheduler started.
 struct TaskStats {
   std::string_view name;
-  FrameTimeStats time;           // duration of each run, against the task's budget
-  std::int64_t runs = 0;         // times it ran
-  std::int64_t slips = 0;        // due ticks it was skipped for lack of time
-  std::int64_t overruns = 0;     // runs that took longer than its budget
-  std::int64_t forced_runs = 0;  // runs without the time, after max_consecutive_slips slips
+  FrameTimeStats time;              // duration of each run, against the task's budget
+  std::int64_t runs = 0;            // times it ran
+  std::int64_t slips = 0;           // due ticks it was skipped for lack of time
+  std::int64_t overruns = 0;        // runs that took longer than its budget
+  std::int64_t forced_runs = 0;     // runs without the time, after max_consecutive_slips slips
+  std::int64_t last_run_tick = -1;  // the tick of its latest run (-1: none yet)
+  std::int64_t last_run_us = 0;     // and how long that run took
 };
 
 // What one tick did.
