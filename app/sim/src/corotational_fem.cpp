@@ -1,7 +1,6 @@
 #include "ultrasim/sim/corotational_fem.hpp"
 
 #include <Eigen/Dense>
-#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -10,9 +9,12 @@
 #include <string>
 
 #include "model_checks.hpp"
+#include "polar_rotation.hpp"
 #include "ultrasim/sim/linear_fem.hpp"
 
 namespace ultrasim::sim {
+
+using corotational_detail::polar_rotation;
 
 namespace {
 
@@ -42,57 +44,6 @@ int encode_contribution(int tet, int a, int b) {
   e.col(1) = x2 - x0;
   e.col(2) = x3 - x0;
   return e;
-}
-
-// The proper rotation closest to f (maximising tr(Rᵀ f) over det R = +1), by SVD: for an inverted
-// f the column of U belonging to the smallest singular value is flipped, so the rotation never
-// becomes a reflection (Irving et al. 2004). Slow (~1 µs); only for degenerate or inverted tets.
-Eigen::Matrix3d rotation_by_svd(const Eigen::Matrix3d& f) {
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(f, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d u = svd.matrixU();
-  const Eigen::Matrix3d& v = svd.matrixV();
-  if ((u * v.transpose()).determinant() < 0.0) u.col(2) = -u.col(2);  // singular values descend
-  return u * v.transpose();
-}
-
-// Polar rotation of a well-conditioned f with det f > 0, by Higham's scaled Newton iteration
-// X ← (γX + X⁻ᵀ/γ)/2, which converges quadratically to the orthogonal polar factor (a rotation,
-// since the determinant keeps its sign): 3-5 iterations, 4× faster than an SVD.
-Eigen::Matrix3d rotation_by_newton(const Eigen::Matrix3d& f) {
-  constexpr int kMaxIterations = 30;
-  Eigen::Matrix3d x = f;
-  bool scaled = true;
-  for (int k = 0; k < kMaxIterations; ++k) {
-    Eigen::Matrix3d cofactor;  // X⁻ᵀ det X
-    cofactor.col(0) = x.col(1).cross(x.col(2));
-    cofactor.col(1) = x.col(2).cross(x.col(0));
-    cofactor.col(2) = x.col(0).cross(x.col(1));
-    const double inverse_det = 1.0 / x.col(0).dot(cofactor.col(0));
-    Eigen::Matrix3d next;
-    if (scaled) {
-      // Frobenius-norm scaling balances X and X⁻ᵀ so a large stretch does not slow the start;
-      // near convergence γ → 1 and the square roots are not worth their cost.
-      const double gamma = std::sqrt(
-          std::sqrt(cofactor.squaredNorm() * inverse_det * inverse_det / x.squaredNorm()));
-      next = (0.5 * gamma) * x + (0.5 * inverse_det / gamma) * cofactor;
-      scaled = std::abs(gamma - 1.0) > 1e-3;
-    } else {
-      next = 0.5 * x + (0.5 * inverse_det) * cofactor;
-    }
-    const double change = (next - x).squaredNorm();
-    x = next;
-    if (change < 1e-14) break;  // quadratic: the error is now ~(1e-7)² / 2
-  }
-  return x;
-}
-
-// Rotation of the deformation gradient f, robust to inverted and collapsed tets.
-Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
-  if (!f.allFinite()) return Eigen::Matrix3d::Identity();
-  const double mean_square_stretch = f.squaredNorm() / 3.0;
-  const double well_conditioned_det = 1e-6 * mean_square_stretch * std::sqrt(mean_square_stretch);
-  if (f.determinant() > well_conditioned_det) return rotation_by_newton(f);
-  return rotation_by_svd(f);
 }
 
 // How far, in radians to first order, the rotation of f has turned from r. With f = r S and S
