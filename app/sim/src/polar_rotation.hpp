@@ -12,7 +12,8 @@ namespace ultrasim::sim::corotational_detail {
 Eigen::Matrix3d rotation_by_svd(const Eigen::Matrix3d& f);
 
 // The same rotation, robust to inverted and collapsed tets (identity for a non-finite f): by
-// Newton's iteration for a well-conditioned f, by SVD for a nearly collapsed one.
+// Newton's iteration for a well-conditioned f (an inverted one's orthogonal factor then flipped
+// across its smallest stretch), by SVD for a nearly collapsed one.
 Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f);
 
 }  // namespace ultrasim::sim::corotational_detail

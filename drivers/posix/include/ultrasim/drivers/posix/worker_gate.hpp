@@ -9,7 +9,7 @@ namespace ultrasim::drivers::posix {
 // Who is inside a ThreadPool's current batch of tasks. The caller opens a batch, runs tasks
 // itself, then closes it and waits only for the workers that joined while it was open: a worker
 // the OS has not yet run when the tasks are all taken (a kernel thread on its core for a time
-// slice: 3-8 ms twice a second on the shared host) costs the caller nothing, and joins the
+// slice: 2-8 ms twice a second on the shared host) costs the caller nothing, and joins the
 // next batch instead. Waiting for every worker to acknowledge each batch held the large case's
 // frames that long.
 class WorkerGate {
