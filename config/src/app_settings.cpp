@@ -278,6 +278,15 @@ TableSchema<sim::StitchingSettings> stitching_schema() {
               "Implicit MSDS: seam exchanges per frame, one implicit step each at least; must "
               "divide [msds] steps_per_frame (2: nearer one piece than 1; a frame without the "
               "time for both runs one)."));
+  t.add(field("implicit_msds_spring_stiffness_per_modulus_mm",
+              &S::implicit_msds_spring_stiffness_per_modulus_mm, RealIn::open_closed(0.0, 10'000.0),
+              "Implicit MSDS: its seam springs' k = E of the stiffest tet at the node x this "
+              "(mN/mm), in place of spring_stiffness_per_modulus_mm (40: with the lead, the "
+              "large case's press seams half as wide as at 20, its forces as near one piece)."));
+  t.add(field("implicit_msds_seam_lead", &S::implicit_msds_seam_lead, RealIn::closed(0.0, 1.0),
+              "Implicit MSDS: a copy whose twin steps later in the same exchange is anchored "
+              "ahead of the twin by this fraction of the seam's move in one exchange of the last "
+              "frame (0: at the twin's place, as published)."));
   t.add(field("corotational_exchanges_per_frame", &S::corotational_exchanges_per_frame,
               IntegerIn<int>{1, 64},
               "Corotational FEM: seam exchanges per frame (1: each part extracts rotations and "

@@ -50,8 +50,14 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
                                 " fixed flags for " + std::to_string(mesh_.node_count()) +
                                 " nodes");
   }
-  if (!(stitching.spring_stiffness_per_modulus_mm > 0.0)) {
-    throw std::invalid_argument("StitchedVolume: spring_stiffness_per_modulus_mm must be > 0");
+  if (!(stitching.spring_stiffness_per_modulus_mm > 0.0) ||
+      !(stitching.implicit_msds_spring_stiffness_per_modulus_mm > 0.0)) {
+    throw std::invalid_argument(
+        "StitchedVolume: spring_stiffness_per_modulus_mm and "
+        "implicit_msds_spring_stiffness_per_modulus_mm must be > 0");
+  }
+  if (!(stitching.implicit_msds_seam_lead >= 0.0 && stitching.implicit_msds_seam_lead <= 1.0)) {
+    throw std::invalid_argument("StitchedVolume: implicit_msds_seam_lead must lie in [0, 1]");
   }
   if (!(stitching.refuse_gap_mm > 0.0)) {
     throw std::invalid_argument("StitchedVolume: refuse_gap_mm must be > 0");
@@ -88,6 +94,7 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
       : method == EngineKind::kMsdsImplicit    ? stitching.implicit_msds_exchanges_per_frame
       : method == EngineKind::kCorotationalFem ? stitching.corotational_exchanges_per_frame
                                                : stitching.exchanges_per_frame;
+  if (method == EngineKind::kMsdsImplicit) seam_lead_ = stitching.implicit_msds_seam_lead;
   build_sub_volumes(tet_materials, fixed_nodes, method, engine_settings, jobs);
   build_copies(tet_materials);
   if (settings_.coarse_correction) {
@@ -127,6 +134,10 @@ StitchedVolume::StitchedVolume(const geometry::GridSpec& grid,
   seam_force_mn_.assign(mesh_.node_count(), 0.0);
   seam_load_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
   seam_pull_before_mn_.assign(copies_.size(), Eigen::Vector3d::Zero());
+  seam_move_per_exchange_mm_.assign(mesh_.node_count(), Eigen::Vector3d::Zero());
+  seam_move_before_mm_.assign(mesh_.node_count(), Eigen::Vector3d::Zero());
+  seam_move_frame_.assign(mesh_.node_count(), 0u);
+  steps_later_in_exchange_.assign(subs_.size(), 0);
   node_stamp_.assign(mesh_.node_count(), 0u);
   moved_subs_.reserve(subs_.size());
   subs_to_look_at_.reserve(subs_.size());
@@ -294,10 +305,13 @@ void StitchedVolume::build_copies(std::span<const Material> tet_materials) {
     }
   }
   seam_stiffness_mn_per_mm_.assign(static_cast<std::size_t>(n), 0.0);
+  const double stiffness_per_modulus_mm =
+      method_ == EngineKind::kMsdsImplicit ? settings_.implicit_msds_spring_stiffness_per_modulus_mm
+                                           : settings_.spring_stiffness_per_modulus_mm;
   for (int g = 0; g < n; ++g) {
     if (copies_begin_[g + 1] - copies_begin_[g] < 2) continue;
     shared_nodes_.push_back(g);
-    seam_stiffness_mn_per_mm_[g] = settings_.spring_stiffness_per_modulus_mm * stiffest_kpa[g];
+    seam_stiffness_mn_per_mm_[g] = stiffness_per_modulus_mm * stiffest_kpa[g];
   }
   const auto count = static_cast<std::size_t>(sub_volume_count());
   shared_node_count_.assign(count * count, 0);

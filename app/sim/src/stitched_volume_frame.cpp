@@ -116,6 +116,10 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     next += count;
     ++b;
   };
+  // The sub-volumes known to step in the first exchange: those that must. A batch that fits
+  // later is marked as it starts.
+  std::fill(steps_later_in_exchange_.begin(), steps_later_in_exchange_.end(), 0);
+  for (int i = 0; i < must_step; ++i) steps_later_in_exchange_[schedule_[i]] = 1;
   while (next < must_step) step_next_batch(must_step);
   // A corotational sub-volume whose due update can be held no more (update_forced_at) costs a
   // batch with an update, not a batch at its least: once such a batch no longer fits, the rest
@@ -149,12 +153,14 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
   for (int part = 1; part < parts; ++part) {
     ++exchange_count_;
     time.start_later_part(part);
+    for (int i = 0; i < next; ++i) steps_later_in_exchange_[schedule_[i]] = 1;
     for (int j = 0; j < batches_stepped; ++j) {
       run_batch(j * batch, std::min(batch, next - j * batch),
                 time.later_part_reserve_us(part, j, batches_stepped), false);
     }
   }
   time.end_steps();
+  frame_exchanges_ = parts;
   const EngineStepStats out =
       settle_frame(std::span(schedule_).first(next), in_reach, next < scheduled, may_continue);
   time.end_frame();
@@ -173,8 +179,10 @@ void StitchedVolume::step_batch(std::span<const int> subs, const ProbeCollider* 
                                 const StepBudget& budget, bool hold_updates) {
   // Anchors first, from positions no sub-volume of the batch has moved yet: the batch's steps
   // are then independent and run in parallel.
+  for (const int s : subs) steps_later_in_exchange_[s] = 1;
   hal::parallel_for(jobs_, static_cast<int>(subs.size()),
                     [&](int i) { refresh_anchors(subs[i], probe); });
+  for (const int s : subs) steps_later_in_exchange_[s] = 0;  // stepping now: twins lead no more
   auto step_one = [&](int i) {
     SubVolume& sub = subs_[subs[i]];
     if (first_part) {

@@ -61,8 +61,13 @@ void StitchedVolume::refresh_anchors(int s, const ProbeCollider* probe) {
     const int g = sub.global_node[local];
     const int own = sub.shared_copy[i];
     Eigen::Vector3d others = Eigen::Vector3d::Zero();
+    const bool lead = seam_lead_ > 0.0 && seam_move_frame_[g] == frames_finished_;
     for (int c = copies_begin_[g]; c < copies_begin_[g + 1]; ++c) {
-      if (c != own) others += copy_positions_mm_[c];
+      if (c == own) continue;
+      others += copy_positions_mm_[c];
+      if (lead && steps_later_in_exchange_[copies_[c].sub]) {
+        others += seam_lead_ * seam_move_per_exchange_mm_[g];
+      }
     }
     const int count = copies_begin_[g + 1] - copies_begin_[g] - 1;
     // count springs of stiffness k to the other copies pull as one of k × count to their mean.
@@ -144,14 +149,29 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
       std::span(copy_positions_mm_)
           .subspan(static_cast<std::size_t>(begin), static_cast<std::size_t>(count));
   const Eigen::Vector3d sum = copies_sum(g);
+  int stepped = 0;
+  for (int c = begin; c < end; ++c) stepped += subs_[copies_[c].sub].stepped;
+  if (seam_lead_ > 0.0 && loads == SeamLoads::kRemember && stepped == count) {
+    const Eigen::Vector3d move = (sum / count - shown_[g]) / frame_exchanges_;
+    const bool consecutive = seam_move_frame_[g] == frames_finished_;
+    Eigen::Vector3d& before = seam_move_before_mm_[g];
+    if (!consecutive) before.setZero();
+    for (int a = 0; a < 3; ++a) {
+      seam_move_per_exchange_mm_[g][a] = move[a] * before[a] <= 0.0 ? 0.0
+                                         : move[a] > 0.0            ? std::min(move[a], before[a])
+                                                                    : std::max(move[a], before[a]);
+    }
+    before = move;
+    seam_move_frame_[g] = frames_finished_ + 1;  // this frame's, once finish_frame has counted it
+  } else {
+    seam_move_before_mm_[g].setZero();
+  }
   shown_[g] = sum / count;  // the published midpoint: no gap shows
   u_.segment<3>(3 * g) = shown_[g] - mesh_.rest_positions_mm[g];
   if (fixed_[g]) {
     seam_gap_mm_[g] = seam_force_mn_[g] = 0.0;
     return;
   }
-  int stepped = 0;
-  for (int c = begin; c < end; ++c) stepped += subs_[copies_[c].sub].stepped;
   // The springs' pull is added to the loads where every copy stepped this frame: a copy left
   // where it was did not answer the load it was given (with one copy stepped at a time the loads
   // wound up and swung, ±150 mN at a four-copy corner of the large case). Elsewhere the loads
@@ -282,6 +302,7 @@ void StitchedVolume::finish_frame(SeamLoads loads) {
     stats_.max_gap_mm = std::max(stats_.max_gap_mm, sub.max_seam_gap_mm);
     stats_.max_seam_force_mn = std::max(stats_.max_seam_force_mn, sub.max_seam_force_mn);
   }
+  ++frames_finished_;
   stats_.sub_volumes_asleep = 0;
   for (auto& sub : subs_) {
     sub.frames_waiting = sub.stepped ? 0 : sub.frames_waiting + 1;

@@ -396,6 +396,11 @@ TEST_F(StitchedSessionTest, APastDeadlineStepsOnlyTheTouchedSubVolumes) {
 TEST_F(StitchedSessionTest, ARefusedPressIsFollowedAsDeepAsTheMethodTakesIt) {
   settings_.stitching.refuse_gap_mm = 0.06;
   settings_.stitching.seam_load_rate = 0.0;
+  // The other methods' seams (20 E, anchored at the twins' places): the implicit MSDS's own
+  // (40 E, led) keep this press's seams within the bound longer (11.6 N at frame 120 against
+  // 10.6 at frame 40).
+  settings_.stitching.implicit_msds_spring_stiffness_per_modulus_mm = 20.0;
+  settings_.stitching.implicit_msds_seam_lead = 0.0;
   // One exchange a frame: with two the seams stay within the bound until 5.9 N (frame 10) and the
   // held press follows from 4.8 N (frame 40) to 6.1 N (frame 110).
   settings_.stitching.implicit_msds_exchanges_per_frame = 1;

@@ -249,6 +249,20 @@ struct StitchingSettings {
   // sweep-press ran its simulation at p90 4.15-4.17 ms against 5.0-5.2 with one (render-capped
   // frames over 16.7 ms 8 against 26-35 of 571; docs/benchmarks.md).
   int implicit_msds_exchanges_per_frame = 2;
+  // The implicit MSDS's seam springs, per Young's modulus as spring_stiffness_per_modulus_mm
+  // (the other methods'), and how far their anchors lead (implicit_msds_seam_lead). Under the
+  // large case's 8 mm press the seams carry a load that changes faster than the remembered loads
+  // follow, and stand apart by what they lag over k: 0.25-0.31 mm at 20 E. 40 E with the lead:
+  // 0.14-0.17 mm, the sweep's forces as at 20 E; 40 E alone held the tissue to copies a frame
+  // old (the sweep 18 N against 16, one piece 12; docs/accuracy.md).
+  double implicit_msds_spring_stiffness_per_modulus_mm = 40.0;
+  // Implicit MSDS: a copy whose twin steps later in the same exchange is anchored where the
+  // twin is expected to be once it has stepped: its place plus this fraction of the seam's move
+  // (the copies' mean) in one exchange of the last frame in which every copy stepped. Without it
+  // a stiff seam drags each copy back to where its twin was. The mean, not the twin's own move:
+  // a seam whose copies swap sides would feed its own swing (a twin's move led the corotational
+  // FEM's seams to tear). 0: anchored to the twin's place, as published.
+  double implicit_msds_seam_lead = 0.7;
   // The same for the corotational FEM. One: each part extracts its tets' rotations and sums its
   // blocks again before its CG, so two parts doubled that work (large case, sweep-press, 1e-3
   // rad: simulation p50 11.1 against 6.5-6.9 ms; widest seam 0.067 against 0.078 mm).
