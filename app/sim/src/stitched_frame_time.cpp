@@ -129,13 +129,8 @@ void StitchedFrameTime::end_steps() {
   if (!shares_) return;
   if (cost_measured_) batch_cost_us_ = frame_batch_cost_us_;
   if (frame_update_batch_cost_us_ >= 0) update_batch_cost_us_ = frame_update_batch_cost_us_;
-  // Kept from the last frame where a batch was told no (one with time to spare says nothing):
-  // taken at once where longer, falling a quarter of the way a frame where shorter.
-  if (frame_batch_tail_us_ >= 0) {
-    batch_tail_us_ = frame_batch_tail_us_ >= batch_tail_us_
-                         ? frame_batch_tail_us_
-                         : batch_tail_us_ - (batch_tail_us_ - frame_batch_tail_us_) / 4;
-  }
+  // Kept from the last frame where a batch was told no (one with time to spare says nothing).
+  if (frame_batch_tail_us_ >= 0) batch_tail_us_ = frame_batch_tail_us_;
   left_after_steps_us_ = (*time_left_us_)();
 }
 
