@@ -252,16 +252,21 @@ struct StitchingSettings {
   // The implicit MSDS's seam springs, per Young's modulus as spring_stiffness_per_modulus_mm
   // (the other methods'), and how far their anchors lead (implicit_msds_seam_lead). Under the
   // large case's 8 mm press the seams carry a load that changes faster than the remembered loads
-  // follow, and stand apart by what they lag over k: 0.25-0.31 mm at 20 E. 40 E with the lead:
-  // 0.14-0.17 mm, the sweep's forces as at 20 E; 40 E alone held the tissue to copies a frame
-  // old (the sweep 18 N against 16, one piece 12; docs/accuracy.md).
+  // follow, and stand apart by what they lag over k: 0.21-0.31 mm at 20 E, 168-200 of its 571
+  // frames over 0.1 mm. 40 E with the lead: 0.13-0.23 mm, 8-45 frames, the sweep's forces as at
+  // 20 E; 40 E alone held the tissue to copies a frame old (the sweep 18 N against 16, one piece
+  // 12; docs/accuracy.md).
   double implicit_msds_spring_stiffness_per_modulus_mm = 40.0;
   // Implicit MSDS: a copy whose twin steps later in the same exchange is anchored where the
   // twin is expected to be once it has stepped: its place plus this fraction of the seam's move
-  // (the copies' mean) in one exchange of the last frame in which every copy stepped. Without it
-  // a stiff seam drags each copy back to where its twin was. The mean, not the twin's own move:
-  // a seam whose copies swap sides would feed its own swing (a twin's move led the corotational
-  // FEM's seams to tear). 0: anchored to the twin's place, as published.
+  // (the copies' mean) in one exchange of the last frame in which every copy stepped, each axis
+  // limited to what its last two frames' moves agree on (the smaller; none at a reversal or
+  // after a frame that did not step every copy: a probe put down at once is no move to carry
+  // on). Without it a stiff seam drags each copy back to where its twin was. The mean, not the
+  // twin's own move: a seam whose copies swap sides would feed its own swing (a twin's move led
+  // the corotational FEM's seams to tear). The quasi-static FEMs' copies go where their anchors
+  // are, and a lead kept their seams moving under a sliding probe: the implicit MSDS's alone.
+  // 0: anchored to the twin's place, as published.
   double implicit_msds_seam_lead = 0.7;
   // The same for the corotational FEM. One: each part extracts its tets' rotations and sums its
   // blocks again before its CG, so two parts doubled that work (large case, sweep-press, 1e-3
