@@ -8,7 +8,7 @@ namespace ultrasim::sim::corotational_detail {
 
 // The proper rotation closest to f (maximising tr(Rᵀ f) over det R = +1), by SVD: for an inverted
 // f the column of U belonging to the smallest singular value is flipped, so the rotation never
-// becomes a reflection (Irving et al. 2004). ~0.7 µs; the reference for polar_rotation().
+// becomes a reflection (Irving et al. 2004). ~0.8 µs; the reference for polar_rotation().
 Eigen::Matrix3d rotation_by_svd(const Eigen::Matrix3d& f);
 
 // The same rotation, robust to inverted and collapsed tets (identity for a non-finite f): by

@@ -160,14 +160,13 @@ EngineStepStats StitchedVolume::step_sharing(const ProbeCollider* probe, double 
     }
   }
   time.end_steps();
-  frame_exchanges_ = parts;
+  stats_.exchanges = parts;  // before the seams' update: a seam's move is per exchange
+  stats_.exchanges_left_out = exchanges_per_frame_ - parts;
   const EngineStepStats out =
       settle_frame(std::span(schedule_).first(next), in_reach, next < scheduled, may_continue);
   time.end_frame();
   stats_.sub_volumes_touched = in_reach;
   stats_.sub_volumes_stepped = next;
-  stats_.exchanges = parts;
-  stats_.exchanges_left_out = exchanges_per_frame_ - parts;
   stats_.sub_volumes_deferred = 0;
   for (const auto& sub : subs_) stats_.sub_volumes_deferred += !sub.stepped && !sub.asleep;
   stats_.updates_held = updates_held;

@@ -152,7 +152,7 @@ void StitchedVolume::update_seam(int g, SeamLoads loads) {
   int stepped = 0;
   for (int c = begin; c < end; ++c) stepped += subs_[copies_[c].sub].stepped;
   if (seam_lead_ > 0.0 && loads == SeamLoads::kRemember && stepped == count) {
-    const Eigen::Vector3d move = (sum / count - shown_[g]) / frame_exchanges_;
+    const Eigen::Vector3d move = (sum / count - shown_[g]) / stats_.exchanges;
     const bool consecutive = seam_move_frame_[g] == frames_finished_;
     Eigen::Vector3d& before = seam_move_before_mm_[g];
     if (!consecutive) before.setZero();

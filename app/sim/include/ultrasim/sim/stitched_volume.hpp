@@ -345,14 +345,13 @@ class StitchedVolume final : public DeformationEngine {
   std::vector<Eigen::Vector3d> seam_pull_before_mn_;
   // The implicit MSDS's seam lead (StitchingSettings::implicit_msds_seam_lead; 0 for the other
   // methods). Per grid node, its copies' mean's move in one exchange over the last frame that
-  // kept a step of every copy, and that frame's number (frames_finished_ counts finish_frame's
-  // calls: a move not from the latest is not led by); the latest frame's exchanges.
+  // kept a step of every copy (its exchanges: stats_.exchanges), and that frame's number
+  // (frames_finished_ counts finish_frame's calls: a move not from the latest is not led by).
   double seam_lead_ = 0.0;
   std::vector<Eigen::Vector3d> seam_move_per_exchange_mm_;
   std::vector<Eigen::Vector3d> seam_move_before_mm_;
   std::vector<std::uint32_t> seam_move_frame_;
   std::uint32_t frames_finished_ = 0;
-  int frame_exchanges_ = 1;
   // Per sub-volume: it steps in the current exchange and has yet to (a twin's anchor leads it).
   std::vector<std::uint8_t> steps_later_in_exchange_;
   std::vector<std::uint32_t> node_stamp_;
