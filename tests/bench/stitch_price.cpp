@@ -217,6 +217,7 @@ void stiffness_study(const Region& r, hal::JobSystem& jobs, std::ofstream& out) 
       stitching.sub_volumes = {5, 5, 1};
       stitching.selective = false;
       stitching.spring_stiffness_per_modulus_mm = k;
+      stitching.implicit_msds_spring_stiffness_per_modulus_mm = k;  // its own seams' setting
       stitching.exchanges_per_frame = 1;  // as charted (the default was 1 until 2026-11-27)
       sim::StitchedVolume stitched(r.grid, r.materials, r.fixed, method, held_contact(), stitching,
                                    &jobs);
