@@ -3,6 +3,9 @@
 // tets, fat over muscle) and sliding ±3 mm, one piece, one thread, per method that holds its
 // contacts (PCG FEM, explicit and implicit MSDS). The slip adds, per held node and step, one node's
 // spring forces (MSDS) or one stiffness row (PCG FEM), a 3 × 3 block and a closest-point query.
+// And find_contacts against asking every node (testing::naive_find_contacts) on a stitched
+// sub-volume's 15³ nodes at 2 mm, the kiosk's 38 × 10 mm linear face pressed 2 mm into its
+// middle, or at its corner (most nodes out of reach), tilted 6°.
 //   build/ci/tests/bench/contact_bench
 
 #include <benchmark/benchmark.h>
@@ -13,6 +16,7 @@
 #include <string>
 
 #include "frame_time_reporter.hpp"
+#include "naive_contacts.hpp"
 #include "stitch_scene.hpp"
 #include "ultrasim/sim/engine_factory.hpp"
 
@@ -66,6 +70,38 @@ BENCHMARK(BM_Contact)
     ->Iterations(60)
     ->Repetitions(3);
 
+void BM_FindContacts(benchmark::State& state) {
+  constexpr int kSide = 15;
+  constexpr double kSpacingMm = 2.0;
+  std::vector<Eigen::Vector3d> nodes;
+  for (int k = 0; k < kSide; ++k) {
+    for (int j = 0; j < kSide; ++j) {
+      for (int i = 0; i < kSide; ++i) nodes.emplace_back(kSpacingMm * Eigen::Vector3d(i, j, k));
+    }
+  }
+  std::vector<std::uint8_t> fixed(nodes.size(), 0);
+  const double at_mm = state.range(1) == 0 ? 14.0 : 0.0;  // the middle, or the corner
+  const auto face = sim::ProbeCollider::linear_face(
+      Eigen::Vector3d(at_mm, at_mm, 2.0),
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX())), 38.0, 10.0, 1.0);
+  std::vector<sim::NodeContact> contacts;
+  contacts.reserve(nodes.size());
+  for (auto _ : state) {
+    if (state.range(0) == 0) {
+      testing::naive_find_contacts(face, nodes, fixed, 1e-6, contacts);
+    } else {
+      sim::find_contacts(face, nodes, fixed, 1e-6, contacts);
+    }
+    benchmark::DoNotOptimize(contacts.data());
+  }
+  state.counters["contacts"] = static_cast<double>(contacts.size());
+}
+BENCHMARK(BM_FindContacts)
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->ArgNames({"fast", "corner"})
+    ->Unit(benchmark::kMicrosecond)
+    ->Repetitions(3);
+
 class RatioReporter : public bench::FrameTimeReporter {
  public:
   void print_summary() const {
@@ -78,6 +114,17 @@ class RatioReporter : public bench::FrameTimeReporter {
       if (stick > 0.0 && slip > 0.0) {
         std::printf("%-14s %8.2f %8.2f %7.3f\n", std::string(sim::engine_key(kMethods[m])).c_str(),
                     stick, slip, slip / stick);
+      }
+    }
+    std::printf(
+        "\nfind_contacts on 15^3 nodes, us: every node asked (reference), box pre-reject\n");
+    for (int corner = 0; corner < 2; ++corner) {
+      const std::string tail = "/corner:" + std::to_string(corner);
+      const double naive = 1e3 * median_ms_by_prefix("BM_FindContacts/fast:0" + tail);
+      const double fast = 1e3 * median_ms_by_prefix("BM_FindContacts/fast:1" + tail);
+      if (naive > 0.0 && fast > 0.0) {
+        std::printf("%-14s %8.1f %8.1f %7.3f\n", corner != 0 ? "at the corner" : "in the middle",
+                    naive, fast, fast / naive);
       }
     }
   }

@@ -10,9 +10,19 @@ void find_contacts(const ProbeCollider& probe, std::span<const Eigen::Vector3d> 
   out.clear();
   const SphereCollider bound = probe.bounding_sphere();
   const bool sphere = probe.shape() == ProbeCollider::Shape::kSphere;
+  // A node outside the probe's box grown by the tolerance is farther than that from the probe
+  // (a stitched sub-volume's nodes mostly are: the closest-point query, a change of frame and a
+  // clamp, was most of the corotational FEM's constraints, 0.07 ms of a 15³ sub-volume's step).
+  // The box is grown by a hair more, so that rounding in its corners cannot leave out a node the
+  // query would take.
+  Eigen::AlignedBox3d reach = probe.bounds_mm();
+  const double grow = tolerance_mm + 1e-9 * (1.0 + reach.diagonal().norm());
+  reach.min().array() -= grow;
+  reach.max().array() += grow;
   for (int node = 0; node < static_cast<int>(positions_mm.size()); ++node) {
     if (fixed_nodes[node]) continue;
     const Eigen::Vector3d& p = positions_mm[node];
+    if (!reach.contains(p)) continue;
     if (sphere && (p - bound.center_mm).squaredNorm() >=
                       (bound.radius_mm + tolerance_mm) * (bound.radius_mm + tolerance_mm)) {
       continue;  // cheap rejection for the common case: most nodes are far from the probe

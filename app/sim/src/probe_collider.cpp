@@ -149,4 +149,24 @@ SphereCollider ProbeCollider::bounding_sphere() const {
   return SphereCollider::behind_face(face_center_mm_, frame_.col(2), radius_mm_);
 }
 
+Eigen::AlignedBox3d ProbeCollider::bounds_mm() const {
+  Eigen::Vector3d half;  // the solid's half extent along each world axis
+  if (shape_ == Shape::kSphere) {
+    half.setConstant(radius_mm_);
+  } else if (shape_ == Shape::kLinearFace) {
+    // The inner box's corners: along world axis i, Σ_j |frame_ij| h_j; then the rounding.
+    half = frame_.cwiseAbs() * half_extent_mm_ + Eigen::Vector3d::Constant(edge_radius_mm_);
+  } else {
+    // The inner cylinder (radius a, half length l along the elevation axis u): along world axis
+    // i, l |u_i| from its axis and a √(1 − u_i²) from its end discs; then the rounding.
+    const Eigen::Vector3d u = frame_.col(1);
+    const double a = half_extent_mm_.x(), l = half_extent_mm_.y();
+    for (int i = 0; i < 3; ++i) {
+      half[i] =
+          l * std::abs(u[i]) + a * std::sqrt(std::max(0.0, 1.0 - u[i] * u[i])) + edge_radius_mm_;
+    }
+  }
+  return {center_mm_ - half, center_mm_ + half};
+}
+
 }  // namespace ultrasim::sim

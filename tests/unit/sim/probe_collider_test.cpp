@@ -6,6 +6,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "naive_contacts.hpp"
 #include "ultrasim/sim/contact.hpp"
 
 namespace ultrasim::sim {
@@ -104,6 +105,95 @@ TEST(FindContacts, ListsFreeNodesInsideWithTheirPushOutTargets) {
   EXPECT_NEAR(contacts[0].depth_mm, 1.0, 1e-12);
   EXPECT_EQ(contacts[1].node, 2);
   EXPECT_NEAR(contacts[1].depth_mm, 0.5, 1e-12);
+}
+
+// The three shapes at random poses: the linear face with its 80 mm body, the convex face with
+// its rims, the sphere.
+std::vector<ProbeCollider> probes_at_random_poses(std::mt19937& rng, int count) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<ProbeCollider> out;
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d c(10.0 * unit(rng), 10.0 * unit(rng), 5.0 * unit(rng));
+    const Eigen::Quaterniond q =
+        i == 0 ? Eigen::Quaterniond::Identity()
+               : Eigen::Quaterniond(Eigen::Vector4d(unit(rng), unit(rng), unit(rng), unit(rng)))
+                     .normalized();
+    out.push_back(ProbeCollider::linear_face(c, q, 38.0, 10.0, 1.0));
+    out.push_back(ProbeCollider::convex_face(c, q, 50.0, 12.0, 2.0));
+    out.push_back(ProbeCollider::sphere({c, 20.0}));
+  }
+  return out;
+}
+
+// Every point of the solid lies in its box (points scattered around the probe: those inside it,
+// and the closest surface points of those outside), and the box is no larger than the solid: its
+// faces are the solid's farthest points along the axes.
+TEST(ProbeCollider, ItsBoxHoldsTheSolidAndNoMore) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (const ProbeCollider& probe : probes_at_random_poses(rng, 6)) {
+    const Eigen::AlignedBox3d box = probe.bounds_mm();
+    Eigen::AlignedBox3d reached;  // empty
+    for (int i = 0; i < 20'000; ++i) {
+      const Eigen::Vector3d p = box.center() + 0.75 * box.sizes().cwiseProduct(Eigen::Vector3d(
+                                                          unit(rng), unit(rng), unit(rng)));
+      if (probe.signed_distance_mm(p) <= 0.0) {
+        EXPECT_TRUE(box.contains(p)) << p.transpose();
+        continue;
+      }
+      // From outside, the closest point is on the surface (from inside, the push-out place).
+      const Eigen::Vector3d on_surface = probe.closest_surface_point(p).point_mm;
+      ASSERT_LE(std::abs(probe.signed_distance_mm(on_surface)), 1e-9);
+      EXPECT_TRUE(box.exteriorDistance(on_surface) < 1e-9) << on_surface.transpose();
+      reached.extend(on_surface);
+    }
+    EXPECT_TRUE(box.contains(reached));
+    // The solid's farthest point along each axis (the closest point to one a kilometre out:
+    // within 10⁻³ mm of the support point for a solid this size) lies on the box's face.
+    for (int axis = 0; axis < 3; ++axis) {
+      for (const double side : {-1.0, 1.0}) {
+        const Eigen::Vector3d far = box.center() + side * 1e6 * Eigen::Vector3d::Unit(axis);
+        const double reach = probe.closest_surface_point(far).point_mm[axis];
+        const double face = side > 0.0 ? box.max()[axis] : box.min()[axis];
+        EXPECT_NEAR(reach, face, 0.01) << "axis " << axis << ", side " << side;
+      }
+    }
+  }
+}
+
+// Nodes outside the probe's box are left out before the closest-point query: the same contacts,
+// in the same order, with the same targets, normals and depths as asking every node (the
+// reference), for nodes scattered inside, around and far from each shape at random poses, some
+// fixed, at the engines' tolerances.
+TEST(FindContacts, LeavesOutOnlyNodesAskingEveryNodeWouldLeaveOut) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<Eigen::Vector3d> nodes(5'000);
+  std::vector<std::uint8_t> fixed(nodes.size());
+  std::vector<NodeContact> fast, reference;
+  int compared = 0;
+  for (const ProbeCollider& probe : probes_at_random_poses(rng, 8)) {
+    const Eigen::AlignedBox3d box = probe.bounds_mm();
+    for (std::size_t n = 0; n < nodes.size(); ++n) {
+      nodes[n] = box.center() +
+                 0.7 * box.sizes().cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+      fixed[n] = n % 17 == 0;
+    }
+    for (const double tolerance : {1e-9, 1e-6, 0.5}) {
+      find_contacts(probe, nodes, fixed, tolerance, fast);
+      testing::naive_find_contacts(probe, nodes, fixed, tolerance, reference);
+      ASSERT_EQ(fast.size(), reference.size());
+      EXPECT_GT(reference.size(), 0u);
+      for (std::size_t i = 0; i < fast.size(); ++i) {
+        EXPECT_EQ(fast[i].node, reference[i].node);
+        EXPECT_EQ(fast[i].target_mm, reference[i].target_mm);
+        EXPECT_EQ(fast[i].normal, reference[i].normal);
+        EXPECT_EQ(fast[i].depth_mm, reference[i].depth_mm);
+      }
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 72);
 }
 
 }  // namespace

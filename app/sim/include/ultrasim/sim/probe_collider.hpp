@@ -54,6 +54,10 @@ class ProbeCollider {
   // face's size resting on the face for the face shapes).
   SphereCollider bounding_sphere() const;
 
+  // The smallest axis-aligned box holding the probe's solid (its rounding included, the linear
+  // face's body too): a point outside it is outside the probe by at least its distance to the box.
+  Eigen::AlignedBox3d bounds_mm() const;
+
   const Eigen::Vector3d& face_center_mm() const { return face_center_mm_; }
   Eigen::Vector3d beam_axis() const { return frame_.col(2); }
 
