@@ -8,11 +8,10 @@ void find_contacts(const ProbeCollider& probe, std::span<const Eigen::Vector3d> 
                    std::span<const std::uint8_t> fixed_nodes, double tolerance_mm,
                    std::vector<NodeContact>& out) {
   out.clear();
-  const SphereCollider bound = probe.bounding_sphere();
-  const bool sphere = probe.shape() == ProbeCollider::Shape::kSphere;
-  // A node outside the probe's box grown by the tolerance is farther than that from the probe
-  // (a stitched sub-volume's nodes mostly are: the closest-point query, a change of frame and a
-  // clamp, was most of the corotational FEM's constraints, 0.07 ms of a 15³ sub-volume's step).
+  // A node outside the probe's box grown by the tolerance is farther than that from the probe,
+  // whatever its shape (a stitched sub-volume's nodes mostly are: the closest-point query, a
+  // change of frame and a clamp, was most of the corotational FEM's constraints, 0.07 ms of a 15³
+  // sub-volume's step).
   // The box is grown by a hair more, so that rounding in its corners cannot leave out a node the
   // query would take.
   Eigen::AlignedBox3d reach = probe.bounds_mm();
@@ -23,10 +22,6 @@ void find_contacts(const ProbeCollider& probe, std::span<const Eigen::Vector3d> 
     if (fixed_nodes[node]) continue;
     const Eigen::Vector3d& p = positions_mm[node];
     if (!reach.contains(p)) continue;
-    if (sphere && (p - bound.center_mm).squaredNorm() >=
-                      (bound.radius_mm + tolerance_mm) * (bound.radius_mm + tolerance_mm)) {
-      continue;  // cheap rejection for the common case: most nodes are far from the probe
-    }
     const SurfacePoint s = probe.closest_surface_point(p);
     const double distance = (p - s.point_mm).dot(s.normal);
     if (!(distance < tolerance_mm)) continue;

@@ -144,11 +144,6 @@ SurfacePoint ProbeCollider::closest_surface_point(const Eigen::Vector3d& p_mm) c
   return out;
 }
 
-SphereCollider ProbeCollider::bounding_sphere() const {
-  if (shape_ == Shape::kSphere) return SphereCollider{center_mm_, radius_mm_};
-  return SphereCollider::behind_face(face_center_mm_, frame_.col(2), radius_mm_);
-}
-
 Eigen::AlignedBox3d ProbeCollider::bounds_mm() const {
   Eigen::Vector3d half;  // the solid's half extent along each world axis
   if (shape_ == Shape::kSphere) {

@@ -50,10 +50,6 @@ class ProbeCollider {
   // point the published collider pushes it out to.
   SurfacePoint closest_surface_point(const Eigen::Vector3d& p_mm) const;
 
-  // The sphere this collider stands for, for the 3D view (the sphere itself, or the sphere of the
-  // face's size resting on the face for the face shapes).
-  SphereCollider bounding_sphere() const;
-
   // The smallest axis-aligned box holding the probe's solid (its rounding included, the linear
   // face's body too): a point outside it is outside the probe by at least its distance to the box.
   Eigen::AlignedBox3d bounds_mm() const;
