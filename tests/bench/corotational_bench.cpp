@@ -8,6 +8,12 @@
 // the tolerance checked every frame or every other (`check_interval`). Counters: each one's mean ms
 // a frame, kept/every, the share of rotations the kept run extracted a frame, and its field's
 // difference from the reference's after the measured frames (max norm, relative).
+// BM_CarriedTissueProduct: a stitched sub-volume's step (15³ nodes, its update every other step,
+// turns checked every other update, `iterations` CG iterations a step: 1 in the frames whose share
+// is spent) whose CG start reads K u carried over from the last solve (tissue_product_refresh_steps
+// 16, the default), against the reference that computes it every solve (1); the same press and
+// slide, alternating. Counters: each one's mean ms a step, carried/fresh, and their fields'
+// difference after the measured steps (max norm, relative).
 // BM_InvertedTetRotation: a tet's rotation from an inverted deformation gradient (a deep press's
 // lost tets, taken again at every update), polar_rotation's fast path against the SVD it
 // replaced, on the same 4,096 gradients; counters: ns a tet each, and SVD / fast.
@@ -87,6 +93,52 @@ BENCHMARK(BM_KeptRotations)
     ->Args({10, 0, 5, 1})
     ->Args({10, 0, 2, 1})
     ->Args({10, 0, 2, 2})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0);
+
+void BM_CarriedTissueProduct(benchmark::State& state) {
+  const bench::Block& b = bench::block(15, 15, 15);
+  const auto settings = [&](int refresh_steps) {
+    sim::CorotationalSettings s;
+    s.pcg_iterations_per_frame = static_cast<int>(state.range(0));
+    s.rotation_update_interval_frames = 2;
+    s.turn_check_interval_frames = 2;
+    s.tissue_product_refresh_steps = refresh_steps;
+    return s;
+  };
+  sim::CorotationalFem fresh(b.mesh, b.materials, b.fixed, settings(1));
+  sim::CorotationalFem carried(b.mesh, b.materials, b.fixed, settings(16));
+  int frame = 0;
+  for (; frame < bench::kAccuracyFrames; ++frame) {  // the press (and a slide), untimed
+    const auto probe = bench::probe_at(frame);
+    fresh.step(&probe, bench::kFrameDtS);
+    carried.step(&probe, bench::kFrameDtS);
+  }
+  double fresh_s = 0.0, carried_s = 0.0;
+  for (auto _ : state) {
+    const auto probe = bench::probe_at(frame++);
+    const auto t0 = Clock::now();
+    fresh.step(&probe, bench::kFrameDtS);
+    const auto t1 = Clock::now();
+    carried.step(&probe, bench::kFrameDtS);
+    const auto t2 = Clock::now();
+    fresh_s += std::chrono::duration<double>(t1 - t0).count();
+    carried_s += std::chrono::duration<double>(t2 - t1).count();
+    state.SetIterationTime(std::chrono::duration<double>(t2 - t0).count());
+  }
+  const auto n = static_cast<double>(state.iterations());
+  state.counters["fresh_ms"] = 1e3 * fresh_s / n;
+  state.counters["carried_ms"] = 1e3 * carried_s / n;
+  state.counters["carried/fresh"] = carried_s / fresh_s;
+  state.counters["difference"] =
+      bench::relative_max_error(carried.displacements_mm(), fresh.displacements_mm());
+}
+
+BENCHMARK(BM_CarriedTissueProduct)
+    ->ArgName("iterations")
+    ->Arg(1)
+    ->Arg(5)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);

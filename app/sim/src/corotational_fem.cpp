@@ -142,6 +142,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (settings.max_update_turns_held < 0) {
     throw std::invalid_argument("max_update_turns_held must be 0 or more");
   }
+  if (settings.tissue_product_refresh_steps < 1) {
+    throw std::invalid_argument("tissue_product_refresh_steps must be 1 or more");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -150,6 +153,8 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   u_ = rhs_ = inverse_diagonal_ = load_mn_ = Eigen::VectorXd::Zero(dofs);
   anchor_stiffness_ = anchor_load_mn_ = Eigen::VectorXd::Zero(dofs);
   r_ = z_ = p_ = q_ = u_before_step_ = Eigen::VectorXd::Zero(dofs);
+  tissue_product_ = tissue_product_u_ = Eigen::VectorXd::Zero(dofs);
+  moved_nodes_.reserve(n);
   held_.assign(n, 0);
   contact_push_mn_.assign(n, 0.0);
   contacts_.reserve(n);  // every node at most once: step() never grows it
@@ -757,6 +762,82 @@ void CorotationalFem::assemble_warped_system() {
       }
     }
   });
+  update_tissue_product_rows();
+}
+
+void CorotationalFem::update_tissue_product_rows() {
+  if (!tissue_product_known_) return;
+  if (rotations_updated_ == tet_count()) {
+    tissue_product_known_ = false;  // every block changed: the next solve's one product
+    return;
+  }
+  // A block changes only with a moved tet holding both its nodes: only moved nodes' rows.
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
+      if (node_moved_[node] && !fixed_[node]) {
+        tissue_product_.segment<3>(3 * node) = warped_row_times(node, tissue_product_u_);
+      }
+    }
+  });
+}
+
+void CorotationalFem::compute_tissue_product() {
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
+      if (!fixed_[node]) tissue_product_.segment<3>(3 * node) = warped_row_times(node, u_);
+    }
+  });
+  tissue_product_u_ = u_;
+  tissue_product_known_ = true;
+  tissue_product_age_ = 0;
+}
+
+void CorotationalFem::sync_tissue_product() {
+  if (!tissue_product_known_ || ++tissue_product_age_ >= settings_.tissue_product_refresh_steps) {
+    compute_tissue_product();
+    return;
+  }
+  moved_nodes_.clear();
+  for (int node = 0; node < node_count(); ++node) {
+    if (u_.segment<3>(3 * node) != tissue_product_u_.segment<3>(3 * node)) {
+      moved_nodes_.push_back(node);
+    }
+  }
+  // A column costs as much as a row: past an eighth of them, a product is as cheap.
+  if (moved_nodes_.size() > static_cast<std::size_t>(node_count() / 8)) {
+    compute_tissue_product();
+    return;
+  }
+  // One thread, node by node: columns write other chunks' rows, in the same order every time.
+  for (const int node : moved_nodes_) {
+    const Eigen::Vector3d moved = u_.segment<3>(3 * node) - tissue_product_u_.segment<3>(3 * node);
+    for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+      // K is symmetric: column `node` of row j is block (node, j) transposed.
+      tissue_product_.segment<3>(3 * block_col_[k]).noalias() +=
+          block_value_[k].transpose() * moved;
+    }
+    tissue_product_u_.segment<3>(3 * node) = u_.segment<3>(3 * node);
+  }
+}
+
+void CorotationalFem::carry_tissue_product() {
+  for_each_chunk(node_chunks(), [&](int chunk) {
+    const auto [begin, end] = node_range(chunk);
+    for (int node = begin; node < end; ++node) {
+      if (fixed_[node]) continue;  // held for good: its row never starts a solve
+      if (held_[node] || sliding_.slides(node)) {
+        tissue_product_.segment<3>(3 * node) = warped_row_times(node, u_);
+      } else {
+        tissue_product_.segment<3>(3 * node) =
+            rhs_.segment<3>(3 * node) + anchor_load_mn_.segment<3>(3 * node) -
+            anchor_stiffness_.segment<3>(3 * node).cwiseProduct(u_.segment<3>(3 * node)) -
+            r_.segment<3>(3 * node);
+      }
+    }
+  });
+  tissue_product_u_ = u_;
 }
 
 void CorotationalFem::mark_constrained_rows() {
@@ -774,6 +855,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
                                                     const StepBudget& may_continue) {
   const int chunks = node_chunks();
   mark_constrained_rows();
+  sync_tissue_product();
   // Start: r = b − K u on free rows. The free system is K_ff u_f = b_f − K_fh u_h; its rhs norm
   // (the same product restricted to held columns) is the residual's yardstick, so a warm start
   // that is already close does not make the tolerance stricter.
@@ -788,10 +870,9 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         continue;
       }
       Eigen::Vector3d ku = Eigen::Vector3d::Zero(), ku_held = Eigen::Vector3d::Zero();
-      // Most rows meet no constraint: the plain product, without a test per block (the start's
-      // product took as long as a CG iteration's).
+      // Most rows meet no constraint: K u as carried, without a product or a test per block.
       if (!meets_constraint_[node]) {
-        ku = warped_row_times(node, u_);
+        ku = tissue_product_.segment<3>(3 * node);
       } else {
         for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
           const int col = block_col_[k];
@@ -887,6 +968,7 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
     });
     ++it;
   }
+  carry_tissue_product();
   return {it, residual / reference, cut_short};
 }
 
@@ -966,6 +1048,7 @@ void CorotationalFem::accept_or_recover(EngineStepStats& stats, const StepBudget
   stats.diverged = true;
   stats.cause = finite ? DivergenceCause::kInverted : DivergenceCause::kNonFinite;
   stats.recovery = Recovery::kSubstepped;
+  if (!finite) tissue_product_known_ = false;  // carried from a non-finite residual
   if (finite) {
     // Cut the frame's update short: the tissue lags the probe for a frame instead of folding.
     q_ = u_ - u_before_step_;

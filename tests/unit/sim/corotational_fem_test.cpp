@@ -1118,6 +1118,71 @@ TEST(CorotationalFem, AnchorsKeptOnTheSameNodesStepAsAnchorsSetAfresh) {
   EXPECT_GT(max_nodal_norm(kept.displacements_mm()), 0.01);
 }
 
+// The CG's start reads K u carried over from the last solve (from its residual, and the columns of
+// the nodes moved since: held nodes, followers let go) instead of a product with K, computed
+// afresh once in tissue_product_refresh_steps solves. Against the engine that computes it every
+// solve, through a press and a slide with friction (sliding nodes), updates every other step
+// (some held), anchors whose targets move every step, a prescribed node, a probe lifted off and
+// back (followers), nodes inside moved between frames, a shape set from outside, and frames with
+// no probe: the same field to
+// rounding in every frame (the carried product differs from a fresh one in its last bits).
+TEST(CorotationalFem, ACarriedTissueProductStepsAsAProductEveryStep) {
+  Block b = make_block(30.0, 0.45, {17, 9, 9});
+  const auto settings = [](int refresh_steps) {
+    CorotationalSettings s = budget(3);
+    s.rotation_update_interval_frames = 2;
+    s.turn_check_interval_frames = 2;
+    s.max_update_turns_held = 1;
+    s.contact.friction_coefficient = 0.1;
+    s.tissue_product_refresh_steps = refresh_steps;
+    return s;
+  };
+  CorotationalFem carried(b.mesh, b.materials, b.fixed, settings(16));
+  CorotationalFem fresh(b.mesh, b.materials, b.fixed, settings(1));
+  std::vector<int> skin;
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& p = b.mesh.rest_positions_mm[n];
+    if (p.z() == 0.0 && std::abs(p.x()) == 20.0) skin.push_back(n);  // two edges of the skin
+  }
+  const int prescribed = node_at(b.mesh, {-15, 5, 0});
+  ASSERT_GE(prescribed, 0);
+  // A correction between frames (displace_free_nodes_mm) that moves a few nodes deep inside.
+  Eigen::VectorXd nudge = Eigen::VectorXd::Zero(3 * b.mesh.node_count());
+  for (int n = 0; n < b.mesh.node_count(); ++n) {
+    const Eigen::Vector3d& p = b.mesh.rest_positions_mm[n];
+    if (p.z() == 10.0 && std::abs(p.x()) <= 5.0) nudge.segment<3>(3 * n) << 0.05, -0.02, 0.1;
+  }
+  double peak = 0.0;
+  int contact_frames = 0;
+  for (int frame = 0; frame < 90; ++frame) {
+    std::vector<AnchorSpring> anchors;
+    for (int n : skin) {
+      anchors.push_back(
+          {n, b.mesh.rest_positions_mm[n] + Eigen::Vector3d(0, 0.01 * (frame % 7), 0.3), 400.0});
+    }
+    for (CorotationalFem* fem : {&carried, &fresh}) {
+      fem->set_anchor_springs(anchors);
+      if (frame == 30) fem->prescribe_displacement(prescribed, {0.0, 0.0, 0.5});
+      if (frame == 40) fem->release_displacement(prescribed);
+      if (frame % 5 == 1) fem->hold_next_update();
+      if (frame == 50 || frame == 52) fem->displace_free_nodes_mm(nudge);
+      if (frame == 70) fem->set_displacements_mm(gentle_twist(b) * 0.05);
+    }
+    // Pressed and slid, lifted off (frames 60-64: no probe), pressed again from frame 65.
+    const bool lifted = frame >= 60 && frame < 65;
+    const ProbeCollider probe = sliding_face(frame < 60 ? frame : frame - 45);
+    const auto c = carried.step(lifted ? nullptr : &probe, 1.0 / 30);
+    const auto f = fresh.step(lifted ? nullptr : &probe, 1.0 / 30);
+    ASSERT_EQ(c.contact_nodes, f.contact_nodes) << "frame " << frame;
+    contact_frames += c.contact_nodes > 0;
+    peak = std::max(peak, max_nodal_norm(fresh.displacements_mm()));
+    ASSERT_LE(max_nodal_norm(carried.displacements_mm() - fresh.displacements_mm()), 1e-9 * peak)
+        << "frame " << frame;
+  }
+  EXPECT_GT(peak, 1.0);
+  EXPECT_GT(contact_frames, 70);
+}
+
 // Under the published stick contact the face's rounded rim folds a few tets as it drags the skin
 // along. Within max_inverted_fraction (the other engines' tolerance) those frames are accepted
 // whole and report their inverted tets; with no tolerance some of them are cut short, and the

@@ -257,6 +257,18 @@ class CorotationalFem final : public DeformationEngine {
     bool cut_short = false;  // the budget stopped it
   };
   PcgResult run_pcg(int max_iterations, double tolerance, const StepBudget& may_continue);
+  // The CG's start reads K u from tissue_product_ instead of a product with K (half of a step
+  // that keeps its rotations: one product at the start, one an iteration). Computed afresh when
+  // it is not known (or its blocks all changed), every tissue_product_refresh_steps solves, or
+  // when more than an eighth of the nodes moved since; else brought up to date column by
+  // column for the nodes that moved outside the CG (held nodes, followers let go).
+  void sync_tissue_product();
+  void compute_tissue_product();
+  // After a solve: K u from the residual the CG kept (r = b − K u − a∘u on a free row), a
+  // product only on held and sliding rows (there r is 0 or projected).
+  void carry_tissue_product();
+  // After an assembly: the rows whose blocks changed, K u again at tissue_product_u_.
+  void update_tissue_product_rows();
   // |Σ reaction over the contacts|, N; stores each contact's push for the next frame.
   double measure_contact_forces();
   // Inverted tets (with a free node) a frame may leave: max_inverted_fraction of all tets.
@@ -356,6 +368,12 @@ class CorotationalFem final : public DeformationEngine {
   // The contacts that slide this frame; per node chunk, whether it holds one.
   SlidingNodes sliding_;
   std::vector<std::uint8_t> chunk_slides_;
+  // K_R u on every row but the fixed nodes', without the anchors, at u = tissue_product_u_
+  // (sync_tissue_product); tissue_product_age_: solves since it was computed afresh.
+  Eigen::VectorXd tissue_product_, tissue_product_u_;
+  bool tissue_product_known_ = false;
+  int tissue_product_age_ = 0;
+  std::vector<int> moved_nodes_;  // sync_tissue_product's scratch (capacity: every node)
   // Per node: a column of its row is held or slides this solve (mark_constrained_rows).
   std::vector<std::uint8_t> meets_constraint_;
   std::vector<Eigen::Vector3d> deformed_;
