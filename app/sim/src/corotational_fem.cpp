@@ -696,17 +696,20 @@ void CorotationalFem::prepare_block_updates(bool every_tet_moved) {
     std::fill(block_update_.begin(), block_update_.end(), BlockUpdate::kSumAgain);
     return;
   }
+  // A node none of whose tets moved keeps every block of its row and its rhs's tet terms (the
+  // row's plans are then left from an earlier frame, and not read). Marked from the moved tets
+  // (a few hundred of a stitched sub-volume's 13,720 under the large soak's presses) rather than
+  // by asking each node's twenty-odd tets: the planning's p50 304 -> 287 µs there.
+  std::fill(node_moved_.begin(), node_moved_.end(), 0);
+  for (int t = 0; t < tet_count(); ++t) {
+    if (!rotation_moved_[t]) continue;
+    for (const int node : tets_[t]) node_moved_[node] = 1;
+  }
   const auto moved = [&](int code) { return rotation_moved_[code >> 4] != 0; };
   const auto* const contributions = contribution_.data();
   for_each_chunk(node_chunks(), [&](int chunk) {
     const auto [begin, end] = node_range(chunk);
     for (int node = begin; node < end; ++node) {
-      // The diagonal block's contributions are exactly the tets holding this node, one each:
-      // if none of them moved, neither did any block of its row nor its rhs's tet terms (the
-      // row's plans are then left from an earlier frame, and not read).
-      const int diag = diagonal_block_[node];
-      node_moved_[node] = std::any_of(contributions + contribution_start_[diag],
-                                      contributions + contribution_start_[diag + 1], moved);
       if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         if (mirror_block_[k] >= 0) continue;  // below the diagonal: copied from its mirror
