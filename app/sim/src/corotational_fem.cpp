@@ -770,8 +770,8 @@ void CorotationalFem::assemble_warped_system() {
 
 void CorotationalFem::update_tissue_product_rows() {
   if (!tissue_product_known_) return;
-  if (rotations_updated_ == tet_count()) {
-    tissue_product_known_ = false;  // every block changed: the next solve's one product
+  if (rotations_updated_ == tet_count() || settings_.tissue_product_refresh_steps == 1) {
+    tissue_product_known_ = false;  // every block changed, or the reference: a product
     return;
   }
   // A block changes only with a moved tet holding both its nodes: only moved nodes' rows.
@@ -971,7 +971,8 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
     });
     ++it;
   }
-  carry_tissue_product();
+  // The reference (a product every solve) never reads it: its steps are the plain ones.
+  if (settings_.tissue_product_refresh_steps > 1) carry_tissue_product();
   return {it, residual / reference, cut_short};
 }
 

@@ -150,8 +150,8 @@ struct CorotationalSettings {
   int max_update_turns_held = 0;
   // The CG's start needs K u: carried over from the last solve (its residual, and the columns
   // of the nodes moved since) and computed afresh once in this many solves, which bounds the
-  // rounding the carried one gathers. 1: a product every solve (the reference the carried one
-  // is tested against).
+  // rounding the carried one gathers. 1: a product every solve and nothing carried (the
+  // reference the carried one is tested against).
   int tissue_product_refresh_steps = 16;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
