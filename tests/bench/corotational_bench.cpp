@@ -14,6 +14,9 @@
 // 16, the default), against the reference that computes it every solve (1); the same press and
 // slide, alternating. Counters: each one's mean ms a step, carried/fresh, and their fields'
 // difference after the measured steps (max norm, relative).
+// BM_TermSwaps: the same sub-volume's step whose update swaps its moved tets' terms in K_R's
+// blocks (term_swap_max_fraction 0.25, the default) against the reference that sums the blocks of
+// the rows they hold again (0); counters as BM_CarriedTissueProduct's.
 // BM_InvertedTetRotation: a tet's rotation from an inverted deformation gradient (a deep press's
 // lost tets, taken again at every update), polar_rotation's fast path against the SVD it
 // replaced, on the same 4,096 gradients; counters: ns a tet each, and SVD / fast.
@@ -23,6 +26,7 @@
 
 #include <chrono>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "../../app/sim/src/polar_rotation.hpp"
@@ -97,45 +101,81 @@ BENCHMARK(BM_KeptRotations)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);
 
+// A stitched sub-volume (15³ nodes) as the stitched volume steps it: its update every other
+// step, turns checked every other update, `iterations` CG iterations a step.
+sim::CorotationalSettings sub_volume_settings(int iterations) {
+  sim::CorotationalSettings s;
+  s.pcg_iterations_per_frame = iterations;
+  s.rotation_update_interval_frames = 2;
+  s.turn_check_interval_frames = 2;
+  return s;
+}
+
+// Steps `reference` and `candidate` through the press and slide, untimed, then through the
+// measured frames, alternating; sets the counters `<names>_ms` (mean a step), the ratio and their
+// fields' difference after the measured steps (max norm, relative).
+void alternate(benchmark::State& state, sim::CorotationalFem& reference,
+               sim::CorotationalFem& candidate, const std::string& reference_name,
+               const std::string& candidate_name) {
+  int frame = 0;
+  for (; frame < bench::kAccuracyFrames; ++frame) {
+    const auto probe = bench::probe_at(frame);
+    reference.step(&probe, bench::kFrameDtS);
+    candidate.step(&probe, bench::kFrameDtS);
+  }
+  double reference_s = 0.0, candidate_s = 0.0;
+  for (auto _ : state) {
+    const auto probe = bench::probe_at(frame++);
+    const auto t0 = Clock::now();
+    reference.step(&probe, bench::kFrameDtS);
+    const auto t1 = Clock::now();
+    candidate.step(&probe, bench::kFrameDtS);
+    const auto t2 = Clock::now();
+    reference_s += std::chrono::duration<double>(t1 - t0).count();
+    candidate_s += std::chrono::duration<double>(t2 - t1).count();
+    state.SetIterationTime(std::chrono::duration<double>(t2 - t0).count());
+  }
+  const auto n = static_cast<double>(state.iterations());
+  state.counters[reference_name + "_ms"] = 1e3 * reference_s / n;
+  state.counters[candidate_name + "_ms"] = 1e3 * candidate_s / n;
+  state.counters[candidate_name + "/" + reference_name] = candidate_s / reference_s;
+  state.counters["difference"] =
+      bench::relative_max_error(candidate.displacements_mm(), reference.displacements_mm());
+}
+
 void BM_CarriedTissueProduct(benchmark::State& state) {
   const bench::Block& b = bench::block(15, 15, 15);
   const auto settings = [&](int refresh_steps) {
-    sim::CorotationalSettings s;
-    s.pcg_iterations_per_frame = static_cast<int>(state.range(0));
-    s.rotation_update_interval_frames = 2;
-    s.turn_check_interval_frames = 2;
+    sim::CorotationalSettings s = sub_volume_settings(static_cast<int>(state.range(0)));
     s.tissue_product_refresh_steps = refresh_steps;
     return s;
   };
   sim::CorotationalFem fresh(b.mesh, b.materials, b.fixed, settings(1));
   sim::CorotationalFem carried(b.mesh, b.materials, b.fixed, settings(16));
-  int frame = 0;
-  for (; frame < bench::kAccuracyFrames; ++frame) {  // the press (and a slide), untimed
-    const auto probe = bench::probe_at(frame);
-    fresh.step(&probe, bench::kFrameDtS);
-    carried.step(&probe, bench::kFrameDtS);
-  }
-  double fresh_s = 0.0, carried_s = 0.0;
-  for (auto _ : state) {
-    const auto probe = bench::probe_at(frame++);
-    const auto t0 = Clock::now();
-    fresh.step(&probe, bench::kFrameDtS);
-    const auto t1 = Clock::now();
-    carried.step(&probe, bench::kFrameDtS);
-    const auto t2 = Clock::now();
-    fresh_s += std::chrono::duration<double>(t1 - t0).count();
-    carried_s += std::chrono::duration<double>(t2 - t1).count();
-    state.SetIterationTime(std::chrono::duration<double>(t2 - t0).count());
-  }
-  const auto n = static_cast<double>(state.iterations());
-  state.counters["fresh_ms"] = 1e3 * fresh_s / n;
-  state.counters["carried_ms"] = 1e3 * carried_s / n;
-  state.counters["carried/fresh"] = carried_s / fresh_s;
-  state.counters["difference"] =
-      bench::relative_max_error(carried.displacements_mm(), fresh.displacements_mm());
+  alternate(state, fresh, carried, "fresh", "carried");
 }
 
 BENCHMARK(BM_CarriedTissueProduct)
+    ->ArgName("iterations")
+    ->Arg(1)
+    ->Arg(5)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0);
+
+void BM_TermSwaps(benchmark::State& state) {
+  const bench::Block& b = bench::block(15, 15, 15);
+  const auto settings = [&](double swap_fraction) {
+    sim::CorotationalSettings s = sub_volume_settings(static_cast<int>(state.range(0)));
+    s.term_swap_max_fraction = swap_fraction;
+    return s;
+  };
+  sim::CorotationalFem summed(b.mesh, b.materials, b.fixed, settings(0.0));
+  sim::CorotationalFem swapped(b.mesh, b.materials, b.fixed, settings(0.25));
+  alternate(state, summed, swapped, "summed", "swapped");
+}
+
+BENCHMARK(BM_TermSwaps)
     ->ArgName("iterations")
     ->Arg(1)
     ->Arg(5)

@@ -145,6 +145,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   if (settings.tissue_product_refresh_steps < 1) {
     throw std::invalid_argument("tissue_product_refresh_steps must be 1 or more");
   }
+  if (!(settings.term_swap_max_fraction >= 0.0 && settings.term_swap_max_fraction <= 1.0)) {
+    throw std::invalid_argument("term_swap_max_fraction must be in [0, 1]");
+  }
   check_held_contact_settings(settings.contact, "CorotationalFem");
   precompute_tets(tet_materials);
   build_pattern_and_scatter_map();
@@ -174,8 +177,9 @@ CorotationalFem::CorotationalFem(const geometry::TetMesh& mesh,
   rotation_moved_.assign(tets_.size(), 1);
   turn_.assign(tets_.size(), 0.0);
   turn_scratch_.reserve(tets_.size());
-  block_update_.assign(block_col_.size(), BlockUpdate::kSumAgain);
+  moved_tets_.reserve(tets_.size());
   node_moved_.assign(n, 1);
+  sum_moved_rows_again_ = true;
   loads_changed_ = true;
   assemble_warped_system();
 }
@@ -276,6 +280,26 @@ void CorotationalFem::build_pattern_and_scatter_map() {
   }
   for (std::size_t k = 0; k < block_col_.size(); ++k) {
     contribution_start_[k + 1] += contribution_start_[k];
+  }
+  // Each tet's ten blocks above the diagonal as offsets into their rows: a moved tet's terms are
+  // swapped without a search for its blocks (the soak's touched sub-volumes: the search's
+  // dependent loads took most of the swaps' time).
+  tet_blocks_.resize(tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    int pair = 0;
+    for (int a = 0; a < 4; ++a) {
+      for (int b = a; b < 4; ++b) {
+        const bool upper = tets_[t][a] <= tets_[t][b];
+        const int row = tets_[t][upper ? a : b];
+        const int k = target[16 * t + (upper ? 4 * a + b : 4 * b + a)];
+        const int offset = k - block_row_start_[row];
+        if (offset > std::numeric_limits<std::uint16_t>::max()) {
+          throw std::invalid_argument("CorotationalFem: node " + std::to_string(row) +
+                                      " has more neighbours than a block offset holds");
+        }
+        tet_blocks_[t][pair++] = static_cast<std::uint16_t>(offset);
+      }
+    }
   }
   std::vector<int> next(contribution_start_.begin(), contribution_start_.end() - 1);
   contribution_.resize(contribution_start_.back());
@@ -667,8 +691,7 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
 }
 
 void CorotationalFem::keep_rotations() {
-  // No row moved: the assembly then updates only what a changed load needs (rotation_moved_,
-  // read only for moved rows' blocks, keeps the last update's marks).
+  // No row moved: the assembly then updates only what a changed load needs.
   std::fill(node_moved_.begin(), node_moved_.end(), 0);
   rotations_updated_ = 0;
 }
@@ -678,88 +701,118 @@ int CorotationalFem::rotation_update_cap() const {
                                                 static_cast<double>(tet_count()))));
 }
 
-Eigen::Matrix3d CorotationalFem::moved_terms(int k) const {
-  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-  for (int c = contribution_start_[k]; c < contribution_start_[k + 1]; ++c) {
-    const int code = contribution_[c];
-    const int t = code >> 4, a = (code >> 2) & 3, b = code & 3;
-    if (!rotation_moved_[t]) continue;
-    sum += stiffness_block(rotated_gradients_[t].col(a), rotated_gradients_[t].col(b),
-                           lame_volume_[t]);
-  }
-  return sum;
-}
-
 void CorotationalFem::prepare_block_updates(bool every_tet_moved) {
+  moved_tets_.clear();
   if (every_tet_moved) {
     std::fill(node_moved_.begin(), node_moved_.end(), 1);
-    std::fill(block_update_.begin(), block_update_.end(), BlockUpdate::kSumAgain);
+    sum_moved_rows_again_ = true;
     return;
   }
-  // A node none of whose tets moved keeps every block of its row and its rhs's tet terms (the
-  // row's plans are then left from an earlier frame, and not read). Marked from the moved tets
-  // (a few hundred of a stitched sub-volume's 13,720 under the large soak's presses) rather than
-  // by asking each node's twenty-odd tets: the planning's p50 304 -> 287 µs there.
+  // A node none of whose tets moved keeps every block of its row and its rhs's tet terms. Marked
+  // from the moved tets (a few hundred of a stitched sub-volume's 13,720 under the large soak's
+  // presses) rather than by asking each node's twenty-odd tets.
   std::fill(node_moved_.begin(), node_moved_.end(), 0);
   for (int t = 0; t < tet_count(); ++t) {
     if (!rotation_moved_[t]) continue;
+    moved_tets_.push_back(t);
     for (const int node : tets_[t]) node_moved_[node] = 1;
   }
-  const auto moved = [&](int code) { return rotation_moved_[code >> 4] != 0; };
-  const auto* const contributions = contribution_.data();
-  for_each_chunk(node_chunks(), [&](int chunk) {
-    const auto [begin, end] = node_range(chunk);
-    for (int node = begin; node < end; ++node) {
-      if (!node_moved_[node]) continue;
-      for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
-        if (mirror_block_[k] >= 0) continue;  // below the diagonal: copied from its mirror
-        const int terms = contribution_start_[k + 1] - contribution_start_[k];
-        const int moved_count =
-            static_cast<int>(std::count_if(contributions + contribution_start_[k],
-                                           contributions + contribution_start_[k + 1], moved));
-        // Swapping a term costs two evaluations (out, in), summing again one per term.
-        block_update_[k] = moved_count == 0          ? BlockUpdate::kKept
-                           : 2 * moved_count < terms ? BlockUpdate::kSwapTerms
-                                                     : BlockUpdate::kSumAgain;
-        // Out with the rotations the moved tets still hold; in after they take their new ones.
-        if (block_update_[k] == BlockUpdate::kSwapTerms) {
-          block_value_[k] -= moved_terms(k);
+  // Swapping a tet's terms reads its own ten blocks; summing its rows again reads every term of
+  // the blocks its nodes' rows hold (the planning and the assembly of the block-by-block choice
+  // this replaced read them twice: 0.63 of a touched sub-volume's 1.36 ms update in the soak).
+  sum_moved_rows_again_ = static_cast<double>(moved_tets_.size()) >=
+                          settings_.term_swap_max_fraction * static_cast<double>(tet_count());
+  if (sum_moved_rows_again_) {
+    moved_tets_.clear();
+    return;
+  }
+  add_moved_tets_terms(-1.0);  // with the rotations they still hold
+}
+
+void CorotationalFem::add_moved_tets_terms(double sign) {
+  // One thread, in tet order: tets sharing a block would race, and the order fixes the sums. A
+  // stitched sub-volume's blocks (6.5 MB on 15³) are far from the cache when it steps: each tet's
+  // data is fetched ahead, its blocks' (found from that data) two tets ahead.
+  const auto fetch = [](const void* p) { __builtin_prefetch(p, 1); };
+  const auto row_block = [&](int t, int pair, int row) {
+    return &block_value_[block_row_start_[tets_[t][row]] + tet_blocks_[t][pair]];
+  };
+  const int count = static_cast<int>(moved_tets_.size());
+  for (int i = 0; i < count; ++i) {
+    if (i + 4 < count) {
+      const int ahead = moved_tets_[i + 4];
+      fetch(&tets_[ahead]);
+      fetch(&tet_blocks_[ahead]);
+      fetch(&rotated_gradients_[ahead]);
+      fetch(&rotated_gradients_[ahead](0, 3));
+      fetch(&element_rhs_[ahead]);
+      fetch(&element_rhs_[ahead](0, 3));
+      fetch(&lame_volume_[ahead]);
+    }
+    if (i + 2 < count) {
+      const int ahead = moved_tets_[i + 2];
+      int pair = 0;
+      for (int a = 0; a < 4; ++a) {
+        fetch(&rhs_[3 * tets_[ahead][a]]);
+        for (int b = a; b < 4; ++b) {
+          const Eigen::Matrix3d* block =
+              row_block(ahead, pair++, tets_[ahead][a] <= tets_[ahead][b] ? a : b);
+          fetch(block);
+          fetch(&(*block)(2, 2));
         }
       }
     }
-  });
+    const int t = moved_tets_[i];
+    const auto& tet = tets_[t];
+    const auto& g = rotated_gradients_[t];
+    int pair = 0;
+    for (int a = 0; a < 4; ++a) {
+      rhs_.segment<3>(3 * tet[a]) += sign * element_rhs_[t].col(a);
+      for (int b = a; b < 4; ++b) {
+        // The block above the diagonal: its row the lower node's, K_ba = K_abᵀ.
+        const bool upper = tet[a] <= tet[b];
+        const int row = upper ? a : b, col = upper ? b : a;
+        *row_block(t, pair++, row) +=
+            sign * stiffness_block(g.col(row), g.col(col), lame_volume_[t]);
+      }
+    }
+  }
 }
 
 void CorotationalFem::assemble_warped_system() {
+  add_moved_tets_terms(1.0);  // their old terms were taken out
+  moved_tets_.clear();        // a step that keeps its rotations adds nothing
   // A gather over global blocks, row bands in parallel: no two tasks write the same value.
   for_each_chunk(node_chunks(), [&](int chunk) {
     const auto [begin, end] = node_range(chunk);
     for (int node = begin; node < end; ++node) {
       if (!node_moved_[node] && !loads_changed_) continue;
-      for (int k = block_row_start_[node]; node_moved_[node] && k < block_row_start_[node + 1];
-           ++k) {
-        if (mirror_block_[k] >= 0) continue;  // below the diagonal: the second pass
-        if (block_update_[k] == BlockUpdate::kSwapTerms) {
-          block_value_[k] += moved_terms(k);  // their old terms were taken out
-        } else if (block_update_[k] == BlockUpdate::kSumAgain) {
-          block_value_[k] = summed_block(k, rotated_gradients_);  // Σ R K_ab Rᵀ
+      if (node_moved_[node] && sum_moved_rows_again_) {
+        // A block changed only if a moved tet holds both its nodes; below the diagonal: the
+        // second pass.
+        for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
+          if (mirror_block_[k] < 0 && node_moved_[block_col_[k]]) {
+            block_value_[k] = summed_block(k, rotated_gradients_);
+          }
         }
       }
-      rhs_.segment<3>(3 * node) = add_element_forces(node, load_mn_.segment<3>(3 * node));
+      // Swapped tets swapped their rhs terms too.
+      if (loads_changed_ || sum_moved_rows_again_) {
+        rhs_.segment<3>(3 * node) = add_element_forces(node, load_mn_.segment<3>(3 * node));
+      }
       update_inverse_diagonal(node);
     }
   });
   loads_changed_ = false;
   // Blocks below the diagonal, from the finished blocks above it. A block's tets hold both its
-  // nodes: in the row of a node that no moved tet holds, none changed.
+  // nodes: a block with a node that no moved tet holds did not change.
   for_each_chunk(node_chunks(), [&](int chunk) {
     const auto [begin, end] = node_range(chunk);
     for (int node = begin; node < end; ++node) {
       if (!node_moved_[node]) continue;
       for (int k = block_row_start_[node]; k < block_row_start_[node + 1]; ++k) {
         const int mirror = mirror_block_[k];
-        if (mirror >= 0 && node_moved_[block_col_[k]] &&
-            block_update_[mirror] != BlockUpdate::kKept) {
+        if (mirror >= 0 && node_moved_[block_col_[k]]) {
           block_value_[k] = block_value_[mirror].transpose();
         }
       }

@@ -103,6 +103,12 @@ TEST(CorotationalFem, RejectsMismatchedInputsBadTetsNonPhysicalMaterialsAndAZero
     EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_cap), std::invalid_argument)
         << cap;
   }
+  for (double swap : {-0.1, 1.5, std::nan("")}) {
+    CorotationalSettings bad_swap;
+    bad_swap.term_swap_max_fraction = swap;
+    EXPECT_THROW(CorotationalFem(b.mesh, b.materials, b.fixed, bad_swap), std::invalid_argument)
+        << swap;
+  }
   auto bad = b.materials;
   bad[3].poisson_ratio = 0.5;
   EXPECT_THROW(CorotationalFem(b.mesh, bad, b.fixed, ok), std::invalid_argument);
@@ -1181,6 +1187,52 @@ TEST(CorotationalFem, ACarriedTissueProductStepsAsAProductEveryStep) {
   }
   EXPECT_GT(peak, 1.0);
   EXPECT_GT(contact_frames, 70);
+}
+
+// While fewer than term_swap_max_fraction of the tets take a new rotation, each one's terms are
+// swapped in K_R's blocks (out with the rotation it held, in with its new one) instead of the
+// blocks of the rows it holds being summed again. Against the engine that always sums them again
+// (0), through a press and a slide, an update every other step with its turns checked every
+// other update, every turned tet taken (so the press's first updates move more than the
+// fraction and sum again, the slide's fewer and swap), and a shape set from outside: the same
+// warped stiffness to rounding, and the same field, in every frame.
+TEST(CorotationalFem, SwappingTheMovedTetsTermsAssemblesAsSummingTheirRowsAgain) {
+  Block b = make_block(30.0, 0.45, {17, 9, 9});
+  const auto settings = [](double swap_fraction) {
+    CorotationalSettings s = budget(3);
+    s.max_rotation_updates_fraction = 1.0;
+    s.rotation_update_interval_frames = 2;
+    s.turn_check_interval_frames = 2;
+    s.term_swap_max_fraction = swap_fraction;
+    return s;
+  };
+  CorotationalFem swapped(b.mesh, b.materials, b.fixed, settings(0.25));
+  CorotationalFem summed(b.mesh, b.materials, b.fixed, settings(0.0));
+  double peak = 0.0;
+  int swap_frames = 0, sum_frames = 0;
+  for (int frame = 0; frame < 80; ++frame) {
+    if (frame == 60) {
+      for (CorotationalFem* fem : {&swapped, &summed}) {
+        fem->set_displacements_mm(gentle_twist(b) * 0.05);
+      }
+    }
+    const ProbeCollider probe = sliding_face(frame);
+    swapped.step(&probe, 1.0 / 30);
+    summed.step(&probe, 1.0 / 30);
+    const int moved = swapped.rotations_updated();
+    ASSERT_EQ(moved, summed.rotations_updated()) << "frame " << frame;
+    swap_frames += moved > 0 && moved < swapped.tet_count() / 4;
+    sum_frames += moved >= swapped.tet_count() / 4 && moved < swapped.tet_count();
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> want = summed.warped_stiffness();
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> diff = swapped.warped_stiffness() - want;
+    ASSERT_LT(diff.norm(), 1e-12 * want.norm()) << "frame " << frame;
+    peak = std::max(peak, max_nodal_norm(summed.displacements_mm()));
+    ASSERT_LE(max_nodal_norm(swapped.displacements_mm() - summed.displacements_mm()), 1e-9 * peak)
+        << "frame " << frame;
+  }
+  EXPECT_GT(peak, 1.0);
+  EXPECT_GT(swap_frames, 8);
+  EXPECT_GT(sum_frames, 2);
 }
 
 // Under the published stick contact the face's rounded rim folds a few tets as it drags the skin

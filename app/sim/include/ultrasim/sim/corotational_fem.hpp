@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string_view>
@@ -43,8 +44,9 @@ struct CorotationalConvergence {
 // steps of its phase, the others solving the last system), the warped stiffness
 // K_R = Σ R K_e Rᵀ is assembled into a
 // block-sparse matrix whose pattern and scatter map were built once (only the blocks of tets
-// whose rotation changed are brought up to date: the old terms of those tets swapped for their
-// new ones where they are fewer than half a block's terms, else the block summed again), and
+// whose rotation changed are brought up to date: while few tets moved
+// (settings.term_swap_max_fraction), each moved tet's old terms swapped for its new ones, else the
+// blocks of the rows they hold summed again), and
 // K_R u = Σ R K_e (x0 − Rᵀ x0) + loads is solved on the free DOFs by Jacobi-preconditioned CG with
 // a fixed iteration budget, warm-started from the last frame. So each frame's rotations lag its
 // solve by one frame; solve_to_convergence() repeats rotations and solves until the shape stops
@@ -240,16 +242,18 @@ class CorotationalFem final : public DeformationEngine {
   Eigen::Matrix3d deformation_gradient(int t) const;
   // Takes f's rotation for tet t, with its rotated gradients and element rhs.
   void extract_rotation(int t, const Eigen::Matrix3d& f);
-  // How each block of K_R above the diagonal in a row a moved tet holds is brought up to date
-  // (node_moved_ and block_update_ from rotation_moved_; every block summed again when every
-  // tet moved), and the moved tets' terms taken out of the blocks that swap them, with the
-  // rotations the tets still hold: before their new rotations are extracted.
+  // How K_R is brought up to date for the tets marked in rotation_moved_ (node_moved_ from
+  // them; every node when every tet moved): their terms swapped (moved_tets_ lists them, and
+  // their terms with the rotations they still hold are taken out here, before their new ones are
+  // extracted), or, past settings.term_swap_max_fraction of the tets, the moved rows' blocks
+  // summed again.
   void prepare_block_updates(bool every_tet_moved);
-  // Σ of block k's terms from the tets marked in rotation_moved_, with their rotated gradients.
-  Eigen::Matrix3d moved_terms(int k) const;
-  // Brings the blocks of K_R with a tet marked in rotation_moved_ up to date (as planned: its
-  // moved tets' new terms added, or summed again), and the rhs and the preconditioner of the
-  // nodes such a tet holds (every node's after a load changed).
+  // sign × the terms of the tets in moved_tets_ added to their blocks above the diagonal and to
+  // the rhs, with their rotated gradients and element rhs.
+  void add_moved_tets_terms(double sign);
+  // Brings K_R and the rhs up to date as prepared (the swapped tets' new terms added, or the
+  // moved rows' blocks and rhs summed again; every node's rhs after a load changed), and the
+  // preconditioner of the nodes a moved tet holds.
   void assemble_warped_system();
   struct PcgResult {
     int iterations = 0;
@@ -329,6 +333,9 @@ class CorotationalFem final : public DeformationEngine {
   // [k+1]), each encoded as tet × 16 + a × 4 + b.
   std::vector<int> contribution_start_;
   std::vector<std::int32_t> contribution_;
+  // Per tet: its blocks above the diagonal for its node pairs (a, b), a ≤ b in (0,0), (0,1), …,
+  // (3,3) order, each as an offset into the row of the pair's lower node.
+  std::vector<std::array<std::uint16_t, 10>> tet_blocks_;
 
   // Per-frame state.
   std::vector<Eigen::Matrix3d> rotation_;                       // per tet
@@ -345,11 +352,11 @@ class CorotationalFem final : public DeformationEngine {
   int updates_held_in_a_row_ = 0;
   bool check_every_tet_ = true;       // the next update checks every tet's turn
   std::vector<double> turn_scratch_;  // the turns past the tolerance (capacity: tets)
-  // Per block on or above the diagonal in a moved row: kept; its moved tets' terms swapped (out
-  // before their rotations change, in after: two evaluations each), fewer than half its terms;
-  // else summed again (one each).
-  enum class BlockUpdate : std::uint8_t { kKept, kSwapTerms, kSumAgain };
-  std::vector<BlockUpdate> block_update_;
+  // The tets whose terms the last update took out of K_R's blocks, in tet order, until the
+  // assembly adds their new ones (capacity: every tet); else the moved rows' blocks are summed
+  // again at the assembly.
+  std::vector<int> moved_tets_;
+  bool sum_moved_rows_again_ = true;
   std::vector<std::uint8_t> node_moved_;  // per node: held by a tet whose rotation moved
   bool loads_changed_ = true;             // since the last assembly: every rhs again
   int rotations_updated_ = 0;

@@ -153,6 +153,13 @@ struct CorotationalSettings {
   // rounding the carried one gathers. 1: a product every solve and nothing carried (the
   // reference the carried one is tested against).
   int tissue_product_refresh_steps = 16;
+  // An update whose moved tets are fewer than this fraction of all swaps their terms in K_R's
+  // blocks tet by tet: each one's ten blocks above the diagonal lose the term of the rotation it
+  // held before the extraction and take its new one after (twenty terms a tet, one thread).
+  // More, and each block of the rows they hold is summed again from all its tets (ten terms a
+  // tet of those rows, both threads). 0: always summed again (the reference the swaps are
+  // tested and benchmarked against).
+  double term_swap_max_fraction = 0.25;
   // As the PCG FEM's: Coulomb slip solved inside the CG, frictionless by default.
   HeldContactSettings contact;
 };
