@@ -101,22 +101,26 @@ BENCHMARK(BM_KeptRotations)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0);
 
-// A stitched sub-volume (15³ nodes) as the stitched volume steps it: its update every other
-// step, turns checked every other update, `iterations` CG iterations a step.
-sim::CorotationalSettings sub_volume_settings(int iterations) {
+// A stitched sub-volume as the stitched volume steps it: its update every other step, turns
+// checked every other update, the benchmark's argument CG iterations a step.
+sim::CorotationalSettings sub_volume_settings(const benchmark::State& state) {
   sim::CorotationalSettings s;
-  s.pcg_iterations_per_frame = iterations;
+  s.pcg_iterations_per_frame = static_cast<int>(state.range(0));
   s.rotation_update_interval_frames = 2;
   s.turn_check_interval_frames = 2;
   return s;
 }
 
-// Steps `reference` and `candidate` through the press and slide, untimed, then through the
-// measured frames, alternating; sets the counters `<names>_ms` (mean a step), the ratio and their
-// fields' difference after the measured steps (max norm, relative).
-void alternate(benchmark::State& state, sim::CorotationalFem& reference,
-               sim::CorotationalFem& candidate, const std::string& reference_name,
-               const std::string& candidate_name) {
+// A 15³ sub-volume with `reference_settings` and one with `candidate_settings`, stepped through
+// the press and slide, untimed, then through the measured frames, alternating; sets the counters
+// `<names>_ms` (mean a step), the ratio and their fields' difference after the measured steps
+// (max norm, relative).
+void alternate(benchmark::State& state, const sim::CorotationalSettings& reference_settings,
+               const sim::CorotationalSettings& candidate_settings,
+               const std::string& reference_name, const std::string& candidate_name) {
+  const bench::Block& b = bench::block(15, 15, 15);
+  sim::CorotationalFem reference(b.mesh, b.materials, b.fixed, reference_settings);
+  sim::CorotationalFem candidate(b.mesh, b.materials, b.fixed, candidate_settings);
   int frame = 0;
   for (; frame < bench::kAccuracyFrames; ++frame) {
     const auto probe = bench::probe_at(frame);
@@ -143,45 +147,31 @@ void alternate(benchmark::State& state, sim::CorotationalFem& reference,
       bench::relative_max_error(candidate.displacements_mm(), reference.displacements_mm());
 }
 
+// One and five CG iterations a step.
+void sub_volume_pair_runs(benchmark::internal::Benchmark* b) {
+  b->ArgName("iterations")
+      ->Arg(1)
+      ->Arg(5)
+      ->UseManualTime()
+      ->Unit(benchmark::kMillisecond)
+      ->MinTime(2.0);
+}
+
 void BM_CarriedTissueProduct(benchmark::State& state) {
-  const bench::Block& b = bench::block(15, 15, 15);
-  const auto settings = [&](int refresh_steps) {
-    sim::CorotationalSettings s = sub_volume_settings(static_cast<int>(state.range(0)));
-    s.tissue_product_refresh_steps = refresh_steps;
-    return s;
-  };
-  sim::CorotationalFem fresh(b.mesh, b.materials, b.fixed, settings(1));
-  sim::CorotationalFem carried(b.mesh, b.materials, b.fixed, settings(16));
+  sim::CorotationalSettings fresh = sub_volume_settings(state), carried = fresh;
+  fresh.tissue_product_refresh_steps = 1;
+  carried.tissue_product_refresh_steps = 16;
   alternate(state, fresh, carried, "fresh", "carried");
 }
-
-BENCHMARK(BM_CarriedTissueProduct)
-    ->ArgName("iterations")
-    ->Arg(1)
-    ->Arg(5)
-    ->UseManualTime()
-    ->Unit(benchmark::kMillisecond)
-    ->MinTime(2.0);
+BENCHMARK(BM_CarriedTissueProduct)->Apply(sub_volume_pair_runs);
 
 void BM_TermSwaps(benchmark::State& state) {
-  const bench::Block& b = bench::block(15, 15, 15);
-  const auto settings = [&](double swap_fraction) {
-    sim::CorotationalSettings s = sub_volume_settings(static_cast<int>(state.range(0)));
-    s.term_swap_max_fraction = swap_fraction;
-    return s;
-  };
-  sim::CorotationalFem summed(b.mesh, b.materials, b.fixed, settings(0.0));
-  sim::CorotationalFem swapped(b.mesh, b.materials, b.fixed, settings(0.25));
+  sim::CorotationalSettings summed = sub_volume_settings(state), swapped = summed;
+  summed.term_swap_max_fraction = 0.0;
+  swapped.term_swap_max_fraction = 0.25;
   alternate(state, summed, swapped, "summed", "swapped");
 }
-
-BENCHMARK(BM_TermSwaps)
-    ->ArgName("iterations")
-    ->Arg(1)
-    ->Arg(5)
-    ->UseManualTime()
-    ->Unit(benchmark::kMillisecond)
-    ->MinTime(2.0);
+BENCHMARK(BM_TermSwaps)->Apply(sub_volume_pair_runs);
 
 void BM_InvertedTetRotation(benchmark::State& state) {
   std::mt19937 rng(5);

@@ -7,6 +7,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "model_checks.hpp"
 #include "polar_rotation.hpp"
@@ -70,6 +71,12 @@ int encode_contribution(int tet, int a, int b) {
                              (s(0, 2) - s(2, 0)) / (d[0] + d[2]),
                              (s(1, 0) - s(0, 1)) / (d[0] + d[1]));
   return turn.norm();
+}
+
+// Of a tet's node pair (a, b), which is the row and which the column of their block above K_R's
+// diagonal: the lower node's row (K_ba = K_abᵀ).
+std::pair<int, int> upper_block_pair(const geometry::Tet& tet, int a, int b) {
+  return tet[a] <= tet[b] ? std::pair{a, b} : std::pair{b, a};
 }
 
 // x_b − x_0 of tet `tet` for a node-major displacement vector on top of rest positions.
@@ -289,12 +296,10 @@ void CorotationalFem::build_pattern_and_scatter_map() {
     int pair = 0;
     for (int a = 0; a < 4; ++a) {
       for (int b = a; b < 4; ++b) {
-        const bool upper = tets_[t][a] <= tets_[t][b];
-        const int row = tets_[t][upper ? a : b];
-        const int k = target[16 * t + (upper ? 4 * a + b : 4 * b + a)];
-        const int offset = k - block_row_start_[row];
+        const auto [row, col] = upper_block_pair(tets_[t], a, b);
+        const int offset = target[16 * t + 4 * row + col] - block_row_start_[tets_[t][row]];
         if (offset > std::numeric_limits<std::uint16_t>::max()) {
-          throw std::invalid_argument("CorotationalFem: node " + std::to_string(row) +
+          throw std::invalid_argument("CorotationalFem: node " + std::to_string(tets_[t][row]) +
                                       " has more neighbours than a block offset holds");
         }
         tet_blocks_[t][pair++] = static_cast<std::uint16_t>(offset);
@@ -677,7 +682,7 @@ void CorotationalFem::update_rotations(double tolerance, int max_updates, int ch
       rotations_updated_ += rotation_moved_[t];
     }
   }
-  prepare_block_updates(rotations_updated_ == tet_count());  // before the new rotations
+  prepare_block_updates();  // before the new rotations
   for_each_chunk(chunks, [&](int chunk) {
     const auto [begin, end] = tet_range(chunk);
     for (int t = begin; t < end; ++t) {
@@ -701,11 +706,15 @@ int CorotationalFem::rotation_update_cap() const {
                                                 static_cast<double>(tet_count()))));
 }
 
-void CorotationalFem::prepare_block_updates(bool every_tet_moved) {
+void CorotationalFem::prepare_block_updates() {
   moved_tets_.clear();
-  if (every_tet_moved) {
+  // Swapping a tet's terms reads its own ten blocks; summing its rows again reads every term of
+  // the blocks its nodes' rows hold (the planning and the assembly of the block-by-block choice
+  // this replaced read them twice: 0.63 of a touched sub-volume's 1.36 ms update in the soak).
+  sum_moved_rows_again_ = static_cast<double>(rotations_updated_) >=
+                          settings_.term_swap_max_fraction * static_cast<double>(tet_count());
+  if (rotations_updated_ == tet_count()) {
     std::fill(node_moved_.begin(), node_moved_.end(), 1);
-    sum_moved_rows_again_ = true;
     return;
   }
   // A node none of whose tets moved keeps every block of its row and its rhs's tet terms. Marked
@@ -714,17 +723,8 @@ void CorotationalFem::prepare_block_updates(bool every_tet_moved) {
   std::fill(node_moved_.begin(), node_moved_.end(), 0);
   for (int t = 0; t < tet_count(); ++t) {
     if (!rotation_moved_[t]) continue;
-    moved_tets_.push_back(t);
+    if (!sum_moved_rows_again_) moved_tets_.push_back(t);
     for (const int node : tets_[t]) node_moved_[node] = 1;
-  }
-  // Swapping a tet's terms reads its own ten blocks; summing its rows again reads every term of
-  // the blocks its nodes' rows hold (the planning and the assembly of the block-by-block choice
-  // this replaced read them twice: 0.63 of a touched sub-volume's 1.36 ms update in the soak).
-  sum_moved_rows_again_ = static_cast<double>(moved_tets_.size()) >=
-                          settings_.term_swap_max_fraction * static_cast<double>(tet_count());
-  if (sum_moved_rows_again_) {
-    moved_tets_.clear();
-    return;
   }
   add_moved_tets_terms(-1.0);  // with the rotations they still hold
 }
@@ -756,7 +756,7 @@ void CorotationalFem::add_moved_tets_terms(double sign) {
         fetch(&rhs_[3 * tets_[ahead][a]]);
         for (int b = a; b < 4; ++b) {
           const Eigen::Matrix3d* block =
-              row_block(ahead, pair++, tets_[ahead][a] <= tets_[ahead][b] ? a : b);
+              row_block(ahead, pair++, upper_block_pair(tets_[ahead], a, b).first);
           fetch(block);
           fetch(&(*block)(2, 2));
         }
@@ -769,9 +769,7 @@ void CorotationalFem::add_moved_tets_terms(double sign) {
     for (int a = 0; a < 4; ++a) {
       rhs_.segment<3>(3 * tet[a]) += sign * element_rhs_[t].col(a);
       for (int b = a; b < 4; ++b) {
-        // The block above the diagonal: its row the lower node's, K_ba = K_abᵀ.
-        const bool upper = tet[a] <= tet[b];
-        const int row = upper ? a : b, col = upper ? b : a;
+        const auto [row, col] = upper_block_pair(tet, a, b);
         *row_block(t, pair++, row) +=
             sign * stiffness_block(g.col(row), g.col(col), lame_volume_[t]);
       }

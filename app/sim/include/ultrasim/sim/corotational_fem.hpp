@@ -242,12 +242,12 @@ class CorotationalFem final : public DeformationEngine {
   Eigen::Matrix3d deformation_gradient(int t) const;
   // Takes f's rotation for tet t, with its rotated gradients and element rhs.
   void extract_rotation(int t, const Eigen::Matrix3d& f);
-  // How K_R is brought up to date for the tets marked in rotation_moved_ (node_moved_ from
-  // them; every node when every tet moved): their terms swapped (moved_tets_ lists them, and
-  // their terms with the rotations they still hold are taken out here, before their new ones are
-  // extracted), or, past settings.term_swap_max_fraction of the tets, the moved rows' blocks
-  // summed again.
-  void prepare_block_updates(bool every_tet_moved);
+  // How K_R is brought up to date for the rotations_updated_ tets marked in rotation_moved_
+  // (node_moved_ from them; every node when every tet moved): their terms swapped (moved_tets_
+  // lists them, and their terms with the rotations they still hold are taken out here, before
+  // their new ones are extracted), or, past settings.term_swap_max_fraction of the tets, the
+  // moved rows' blocks summed again.
+  void prepare_block_updates();
   // sign × the terms of the tets in moved_tets_ added to their blocks above the diagonal and to
   // the rhs, with their rotated gradients and element rhs.
   void add_moved_tets_terms(double sign);
