@@ -8,6 +8,7 @@
 
 #include "grid_row_runs.hpp"
 #include "pixel_plane.hpp"
+#include "trilinear_span.hpp"
 #include "ultrasim/geometry/tet_edges.hpp"
 
 namespace ultrasim::imaging {
@@ -71,61 +72,6 @@ void add_bound(const Constraint& c, std::array<Bound, N>& first, std::size_t& ne
 
 }  // namespace
 
-// What slice_rows needs of the frame's volume and display settings, gathered once per call.
-struct FastSlicer::Sampler {
-  const std::uint8_t* voxels;
-  std::ptrdiff_t stride_y, stride_z;      // voxels per index step in j and k
-  std::ptrdiff_t step_x, step_y, step_z;  // neighbour offsets (0 along a one-voxel axis)
-  int max_i, max_j, max_k;                // largest lower corner of a trilinear cell
-  std::uint8_t background;                // settings.background_grey
-};
-
-namespace {
-
-// Trilinear samples of the volume at voxel indices index_at_col0 + col · step for col in
-// [first, last], as grey levels, into out[col]: the hot loop of the slicer. Everything it reads is
-// copied into locals first, because its byte stores could alias any memory the compiler would
-// otherwise have to reload. Without kClamp the indices must keep a whole cell inside the volume
-// (x in [0, size.x - 1), ...), which holds for tets whose rest position stays clear of the
-// volume's edge; with it, indices may reach the last voxel plane (and 1e-9 beyond either end).
-template <bool kClamp, typename VolumeSampler>
-void sample_span(const VolumeSampler& s, const Eigen::Vector3d& index_at_col0,
-                 const Eigen::Vector3d& step, int first, int last, std::uint8_t* out) {
-  const std::uint8_t* const voxels = s.voxels;
-  const std::ptrdiff_t stride_y = s.stride_y, stride_z = s.stride_z;
-  const std::ptrdiff_t step_x = s.step_x, step_y = s.step_y, step_z = s.step_z;
-  const int max_i = s.max_i, max_j = s.max_j, max_k = s.max_k;
-  const double x0 = index_at_col0.x(), y0 = index_at_col0.y(), z0 = index_at_col0.z();
-  const double dx = step.x(), dy = step.y(), dz = step.z();
-  // Stepped rather than recomputed per pixel: the drift over a row (~1e-11 voxel) is far inside
-  // every margin above, and it saves three multiplications a pixel.
-  double xi = x0 + first * dx, yi = y0 + first * dy, zi = z0 + first * dz;
-  for (int col = first; col <= last; ++col, xi += dx, yi += dy, zi += dz) {
-    // Indices are >= -1e-9, so truncation is floor (or 0 for the hair below it).
-    int i = static_cast<int>(xi), j = static_cast<int>(yi), k = static_cast<int>(zi);
-    if constexpr (kClamp) {
-      i = std::min(i, max_i);
-      j = std::min(j, max_j);
-      k = std::min(k, max_k);
-    }
-    const double fx = xi - i, fy = yi - j, fz = zi - k;
-    const std::uint8_t* p =
-        voxels + (i + j * static_cast<int>(stride_y) + k * static_cast<int>(stride_z));
-    const std::uint8_t* q = p + step_z;
-    const double c00 = p[0] + (p[step_x] - p[0]) * fx;
-    const double c10 = p[step_y] + (p[step_y + step_x] - p[step_y]) * fx;
-    const double c01 = q[0] + (q[step_x] - q[0]) * fx;
-    const double c11 = q[step_y] + (q[step_y + step_x] - q[step_y]) * fx;
-    const double c0 = c00 + (c10 - c00) * fy;
-    const double c1 = c01 + (c11 - c01) * fy;
-    // Rounded to the nearest grey level and clamped, as echo_to_grey does.
-    const double grey = std::min(std::max(c0 + (c1 - c0) * fz + 0.5, 0.0), 255.0);
-    out[col] = static_cast<std::uint8_t>(grey);
-  }
-}
-
-}  // namespace
-
 // The image plane and volume mapping of the frame being prepared.
 struct FastSlicer::Frame {
   PixelPlane plane;
@@ -133,7 +79,7 @@ struct FastSlicer::Frame {
   Eigen::Vector3d index_max = Eigen::Vector3d::Zero();
 };
 
-FastSlicer::FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid)
+FastSlicer::FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid, Sampling sampling)
     : tets_(mesh.tets),
       rest_mm_(mesh.rest_positions_mm),
       grid_(grid),
@@ -142,6 +88,11 @@ FastSlicer::FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid)
       frame_(std::make_unique<Frame>()),
       node_distance_mm_(mesh.rest_positions_mm.size()),
       node_side_(mesh.rest_positions_mm.size()) {
+  const slicer_detail::SpanKernels kernels = sampling == Sampling::kPortable
+                                                 ? slicer_detail::portable_span_kernels()
+                                                 : slicer_detail::fastest_span_kernels();
+  sample_inside_ = kernels.inside;
+  sample_clamped_ = kernels.clamped;
   set_grid(grid);
 }
 
@@ -210,14 +161,23 @@ void FastSlicer::begin_prepare(const Volume<std::uint8_t>& volume,
     // A new volume (the first frame, or another case): which rest tets stay clear of its edge,
     // so that their pixels need no clipping. Once per volume, not per frame.
     volume_geometry_ = VolumeGeometry::of(volume);
+    const slicer_detail::VoxelGrid grid = slicer_detail::voxel_grid_of(volume);
     for (std::size_t t = 0; t < tets_.size(); ++t) {
       bool inside = true;
+      Eigen::Vector3d highest = Eigen::Vector3d::Zero();
       for (int c = 0; c < 4; ++c) {
         const Eigen::Vector3d index = world_to_index * (rest_mm_[tets_[t][c]] - volume.origin_mm());
         inside = inside && (index.array() >= kInteriorMarginVoxels).all() &&
                  (index.array() <= index_max.array() - kInteriorMarginVoxels).all();
+        highest = highest.cwiseMax(index);
       }
-      tet_inside_volume_[t] = inside;
+      // A pixel's cell lies within its tet's nodes' cells: the span kernels' last read of the
+      // tet's farthest cell must be in the volume too (the volume's last few voxels are not).
+      tet_inside_volume_[t] =
+          inside && slicer_detail::last_byte_read(grid, static_cast<std::ptrdiff_t>(highest.x()),
+                                                  static_cast<std::ptrdiff_t>(highest.y()),
+                                                  static_cast<std::ptrdiff_t>(highest.z())) <
+                        grid.voxel_count;
     }
   }
 }
@@ -358,19 +318,8 @@ void FastSlicer::slice_rows(const BscanSettings& settings, int row_begin, int ro
   }
   if (volume_ == nullptr) return;
 
-  const Volume<std::uint8_t>& v = *volume_;
-  const Eigen::Vector3i n = v.size();
-  Sampler sampler{};
-  sampler.voxels = v.voxels().data();
-  sampler.stride_y = n.x();
-  sampler.stride_z = static_cast<std::ptrdiff_t>(n.x()) * n.y();
-  sampler.step_x = n.x() > 1 ? 1 : 0;
-  sampler.step_y = n.y() > 1 ? sampler.stride_y : 0;
-  sampler.step_z = n.z() > 1 ? sampler.stride_z : 0;
-  sampler.max_i = std::max(n.x() - 2, 0);
-  sampler.max_j = std::max(n.y() - 2, 0);
-  sampler.max_k = std::max(n.z() - 2, 0);
-  sampler.background = static_cast<std::uint8_t>(settings.background_grey);
+  const slicer_detail::VoxelGrid grid = slicer_detail::voxel_grid_of(*volume_);
+  const auto background = static_cast<std::uint8_t>(settings.background_grey);
 
   for (int band = row_begin / kBandRows; band <= (row_end - 1) / kBandRows; ++band) {
     const int band_first = std::max(row_begin, band * kBandRows);
@@ -381,8 +330,8 @@ void FastSlicer::slice_rows(const BscanSettings& settings, int row_begin, int ro
     // mesh whose tets overlap without inverting.
     for (int i = band_start_[band + 1] - 1; i >= band_start_[band]; --i) {
       const CutTet& cut = *band_cuts_[i];
-      draw_cut_rows(cut, std::max(band_first, cut.row_min), std::min(band_last, cut.row_max),
-                    sampler, out);
+      draw_cut_rows(cut, std::max(band_first, cut.row_min), std::min(band_last, cut.row_max), grid,
+                    background, out);
     }
   }
 }
@@ -417,8 +366,10 @@ inline double tightest_last(const std::array<Bound, N>& bounds, double row) {
 
 }  // namespace
 
-void FastSlicer::draw_cut_rows(const CutTet& cut, int row_first, int row_last, const Sampler& s,
+void FastSlicer::draw_cut_rows(const CutTet& cut, int row_first, int row_last,
+                               const slicer_detail::VoxelGrid& grid, std::uint8_t background,
                                std::span<std::uint8_t> out) const {
+  const slicer_detail::SpanKernel sample = cut.clip_to_volume ? sample_clamped_ : sample_inside_;
   for (int row = row_first; row <= row_last; ++row) {
     int first, last;
     whole_columns(tightest_first(cut.first_in_tet, row), tightest_last(cut.last_in_tet, row),
@@ -446,15 +397,14 @@ void FastSlicer::draw_cut_rows(const CutTet& cut, int row_first, int row_last, c
         // The part of the tet whose rest position lies outside the volume shows background, as
         // in the reference, even where another tet (a fold) has drawn something.
         for (int col = run_first; col <= run_last; ++col) {
-          if (col < sample_first || col > sample_last) row_out[col] = s.background;
+          if (col < sample_first || col > sample_last) row_out[col] = background;
         }
       }
       const int span_first = std::max(run_first, sample_first);
       const int span_last = std::min(run_last, sample_last);
-      if (cut.clip_to_volume) {
-        sample_span<true>(s, index_at_col0, cut.index_per_col, span_first, span_last, row_out);
-      } else {
-        sample_span<false>(s, index_at_col0, cut.index_per_col, span_first, span_last, row_out);
+      if (span_first <= span_last) {
+        sample(grid, index_at_col0.data(), cut.index_per_col.data(), span_first, span_last,
+               row_out);
       }
     }
   }

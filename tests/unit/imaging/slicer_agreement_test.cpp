@@ -2,11 +2,13 @@
 // pixel within ±1 grey level, and background on exactly the pixels where the reference has it,
 // over random probe poses (both grid kinds) and random smooth deformations; planes that run
 // exactly through nodes, faces and the mesh's boundary; inverted tets; rows split over threads;
-// and an affine deformation of an affine echo, where the right answer is known.
+// the fast slicer's AVX2 sampling against its portable sampling, bitwise; and an affine
+// deformation of an affine echo, where the right answer is known.
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -310,6 +312,49 @@ std::vector<std::uint8_t> slice_on_two_threads(const Slicer& slicer, const Bscan
   slicer.slice_rows(settings, split, slicer.height_px(), image);
   worker.join();
   return image;
+}
+
+TEST(SlicerKernels, FastestAndPortableSamplingGiveTheSameImage) {
+  // The AVX2 span kernels against the portable ones over whole images: random poses and
+  // deformations, a volume that covers only part of the mesh (clamped spans, spans ending on its
+  // far corner) and one that holds all of it, both grid kinds. Bitwise, not within a grey level.
+  const geometry::TetMesh mesh = grid_mesh({16, 8, 8});
+  const std::array<Volume<std::uint8_t>, 2> volumes = {textured_volume({-18, -10, 0}, {20, 9, 27}),
+                                                       textured_volume(kMeshMin, kMeshMax)};
+  const std::array<BscanGrid, 2> grids = {BscanGrid(linear_probe(), 131, 97),
+                                          BscanGrid(convex_probe(), 113, 89)};
+  std::mt19937 rng(5003);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::array<FastSlicer, 2> fastest = {FastSlicer(mesh, grids[0]), FastSlicer(mesh, grids[1])};
+  std::array<FastSlicer, 2> portable = {
+      FastSlicer(mesh, grids[0], FastSlicer::Sampling::kPortable),
+      FastSlicer(mesh, grids[1], FastSlicer::Sampling::kPortable)};
+  long inside = 0, pixels = 0;
+  for (int d = 0; d < 4; ++d) {
+    const auto deformed = random_deformation(mesh, rng, d % 2 == 1);
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : deformed) centre += p;
+    centre /= static_cast<double>(deformed.size());
+    for (int k = 0; k < 20; ++k) {
+      ProbePose pose;
+      pose.face_center_mm = centre + Eigen::Vector3d(unit(rng) * 14, unit(rng) * 7, unit(rng) * 12);
+      pose.axes = random_rotation(rng);
+      BscanSettings settings;
+      settings.background_grey = kBackground;
+      const Volume<std::uint8_t>& volume = volumes[(k / 2) % 2];
+      const BscanGrid& grid = grids[k % 2];
+      const std::size_t n = static_cast<std::size_t>(grid.width_px()) * grid.height_px();
+      std::vector<std::uint8_t> a(n), b(n);
+      fastest[k % 2].prepare(volume, deformed, pose);
+      fastest[k % 2].slice(settings, a);
+      portable[k % 2].prepare(volume, deformed, pose);
+      portable[k % 2].slice(settings, b);
+      ASSERT_EQ(a, b) << "deformation " << d << ", pose " << k;
+      inside += std::ranges::count_if(a, [](std::uint8_t g) { return g != kBackground; });
+      pixels += static_cast<long>(n);
+    }
+  }
+  EXPECT_GT(inside, pixels / 5) << "the poses should see tissue";
 }
 
 TEST(SlicerThreads, RowsSplitOverTwoThreadsGiveTheSameImageAsOneCall) {

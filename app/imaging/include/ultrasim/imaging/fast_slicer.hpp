@@ -15,6 +15,12 @@
 namespace ultrasim::imaging {
 
 class GridRowRuns;
+namespace slicer_detail {
+struct VoxelGrid;
+// Samples one row span of a cut (app/imaging/src/trilinear_span.hpp).
+using SpanKernel = void (*)(const VoxelGrid& grid, const double* index_at_col0, const double* step,
+                            int first, int last, std::uint8_t* out);
+}  // namespace slicer_detail
 
 // B-scan of the deformed tissue by cutting the mesh with the image plane (method (c)); the same
 // image as slice_deformed_reference (±1 grey level from rounding; background on the same pixels).
@@ -41,10 +47,15 @@ class FastSlicer {
  public:
   static constexpr int kBandRows = 8;
 
+  // How the pixels of a span sample the volume: four at a time with AVX2 where the CPU has it
+  // (the default), or one at a time (the reference); the same bytes either way.
+  enum class Sampling { kFastest, kPortable };
+
   // Copies the mesh's tets and rest positions and sizes buffers for the grid: a raster grid of
   // either probe, or a linear probe's scan lines (a raster too). A convex probe's scan lines fan
   // out and throw std::invalid_argument: acquire those with slice_deformed_reference. Allocates.
-  FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid);
+  FastSlicer(const geometry::TetMesh& mesh, const BscanGrid& grid,
+             Sampling sampling = Sampling::kFastest);
   ~FastSlicer();
   FastSlicer(FastSlicer&&) noexcept;
   FastSlicer& operator=(FastSlicer&&) noexcept;
@@ -113,9 +124,8 @@ class FastSlicer {
     bool clip_to_volume;   // the rest tet reaches the volume's edge: bound spans by it too
     int volume_row_min, volume_row_max;  // with clipping: rows that can reach into the volume
   };
-  struct Sampler;
-
-  void draw_cut_rows(const CutTet& cut, int row_first, int row_last, const Sampler& sampler,
+  void draw_cut_rows(const CutTet& cut, int row_first, int row_last,
+                     const slicer_detail::VoxelGrid& grid, std::uint8_t background,
                      std::span<std::uint8_t> out) const;
 
   std::vector<geometry::Tet> tets_;
@@ -124,6 +134,10 @@ class FastSlicer {
   int width_px_ = 0;
   int height_px_ = 0;
   std::unique_ptr<GridRowRuns> row_runs_;
+  // The span kernels (by Sampling): the samples of a span inside the volume, and of one that
+  // may reach its edge.
+  slicer_detail::SpanKernel sample_inside_ = nullptr;
+  slicer_detail::SpanKernel sample_clamped_ = nullptr;
 
   // Per volume: the geometry last seen, and per tet whether its rest position stays clear of the
   // volume's edge (its pixels need no clipping).
