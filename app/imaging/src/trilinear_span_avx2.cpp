@@ -59,69 +59,95 @@ int largest_index(double at_col0, double step, int first, int last, int clamp_to
   return std::min(i, clamp_to);
 }
 
+// What every group of four pixels of a span needs, broadcast to the lanes once per span.
+struct SpanLanes {
+  __m128i stride_y, stride_z, max_i, max_j, max_k;
+  __m256d x0, y0, z0, dx, dy, dz;
+};
+
+ULTRASIM_AVX2_INLINE SpanLanes span_lanes(const VoxelGrid& g, const double* index_at_col0,
+                                          const double* step) {
+  return {_mm_set1_epi32(static_cast<int>(g.stride_y)),
+          _mm_set1_epi32(static_cast<int>(g.stride_z)),
+          _mm_set1_epi32(g.max_i),
+          _mm_set1_epi32(g.max_j),
+          _mm_set1_epi32(g.max_k),
+          _mm256_set1_pd(index_at_col0[0]),
+          _mm256_set1_pd(index_at_col0[1]),
+          _mm256_set1_pd(index_at_col0[2]),
+          _mm256_set1_pd(step[0]),
+          _mm256_set1_pd(step[1]),
+          _mm256_set1_pd(step[2])};
+}
+
+// The grey levels of the pixels at columns c (whole numbers), as four bytes, lane 0 lowest.
+template <bool kClamp>
+ULTRASIM_AVX2_INLINE int four_greys(const VoxelGrid& g, const SpanLanes& l, __m256d c) {
+  const __m256d xi = _mm256_add_pd(l.x0, _mm256_mul_pd(c, l.dx));
+  const __m256d yi = _mm256_add_pd(l.y0, _mm256_mul_pd(c, l.dy));
+  const __m256d zi = _mm256_add_pd(l.z0, _mm256_mul_pd(c, l.dz));
+  __m128i i = _mm256_cvttpd_epi32(xi), j = _mm256_cvttpd_epi32(yi), k = _mm256_cvttpd_epi32(zi);
+  if constexpr (kClamp) {
+    i = _mm_min_epi32(i, l.max_i);
+    j = _mm_min_epi32(j, l.max_j);
+    k = _mm_min_epi32(k, l.max_k);
+  }
+  const __m256d fx = _mm256_sub_pd(xi, _mm256_cvtepi32_pd(i));
+  const __m256d fy = _mm256_sub_pd(yi, _mm256_cvtepi32_pd(j));
+  const __m256d fz = _mm256_sub_pd(zi, _mm256_cvtepi32_pd(k));
+  const __m128i p = _mm_add_epi32(
+      i, _mm_add_epi32(_mm_mullo_epi32(j, l.stride_y), _mm_mullo_epi32(k, l.stride_z)));
+  alignas(16) int offsets[kLanes];
+  _mm_store_si128(reinterpret_cast<__m128i*>(offsets), p);
+  const __m256d c00 = lerp_x(pairs_at(g.voxels, offsets, 0), fx);
+  const __m256d c10 = lerp_x(pairs_at(g.voxels, offsets, g.step_y), fx);
+  const __m256d c01 = lerp_x(pairs_at(g.voxels, offsets, g.step_z), fx);
+  const __m256d c11 = lerp_x(pairs_at(g.voxels, offsets, g.step_y + g.step_z), fx);
+  const __m256d c0 = lerp(c00, c10, fy);
+  const __m256d c1 = lerp(c01, c11, fy);
+  const __m256d grey = _mm256_min_pd(
+      _mm256_max_pd(_mm256_add_pd(_mm256_add_pd(c0, _mm256_mul_pd(_mm256_sub_pd(c1, c0), fz)),
+                                  _mm256_set1_pd(0.5)),
+                    _mm256_setzero_pd()),
+      _mm256_set1_pd(255.0));
+  const __m128i levels = _mm256_cvttpd_epi32(grey);  // 0..255: the packs below keep them
+  const __m128i bytes = _mm_packus_epi16(_mm_packus_epi32(levels, levels), _mm_setzero_si128());
+  return _mm_cvtsi128_si32(bytes);
+}
+
 template <bool kClamp>
 [[gnu::target("avx2")]] void sample_span(const VoxelGrid& g, const double* index_at_col0,
                                          const double* step, int first, int last,
                                          std::uint8_t* out) {
-  const SpanKernel portable = kClamp ? &portable_clamped_span : &portable_inside_span;
-  if (g.step_x != 1 || last - first + 1 < kLanes) {
-    portable(g, index_at_col0, step, first, last, out);
+  // Each lane reads a 32-bit word where the portable kernel reads two bytes (voxels i, i + 1):
+  // only with a second voxel along x, and, for a clamped span, only where the word's two bytes
+  // past them are still in the volume (an inside span's are, by its contract).
+  if (g.step_x != 1 ||
+      (kClamp && last_byte_read(g, largest_index(index_at_col0[0], step[0], first, last, g.max_i),
+                                largest_index(index_at_col0[1], step[1], first, last, g.max_j),
+                                largest_index(index_at_col0[2], step[2], first, last, g.max_k)) >=
+                     g.voxel_count)) {
+    (kClamp ? portable_clamped_span : portable_inside_span)(g, index_at_col0, step, first, last,
+                                                            out);
     return;
   }
-  // An inside span's reads are in the volume by its contract; a clamped one may reach the
-  // volume's last voxels, where the 32-bit words would read past it.
-  if (kClamp && last_byte_read(g, largest_index(index_at_col0[0], step[0], first, last, g.max_i),
-                               largest_index(index_at_col0[1], step[1], first, last, g.max_j),
-                               largest_index(index_at_col0[2], step[2], first, last, g.max_k)) >=
-                    g.voxel_count) {
-    portable(g, index_at_col0, step, first, last, out);
+  const SpanLanes l = span_lanes(g, index_at_col0, step);
+  const __m256d lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);  // whole numbers: c is exact
+  const int pixels = last - first + 1;
+  if (pixels < kLanes) {
+    // The lanes past the span repeat its last pixel (whose reads are in bounds); only the span's
+    // own bytes are stored.
+    const __m256d c =
+        _mm256_min_pd(_mm256_add_pd(_mm256_set1_pd(first), lane), _mm256_set1_pd(last));
+    const int four = four_greys<kClamp>(g, l, c);
+    std::memcpy(out + first, &four, static_cast<std::size_t>(pixels));
     return;
   }
-  const __m128i stride_y = _mm_set1_epi32(static_cast<int>(g.stride_y));
-  const __m128i stride_z = _mm_set1_epi32(static_cast<int>(g.stride_z));
-  const __m128i max_i = _mm_set1_epi32(g.max_i), max_j = _mm_set1_epi32(g.max_j),
-                max_k = _mm_set1_epi32(g.max_k);
-  const __m256d x0 = _mm256_set1_pd(index_at_col0[0]), y0 = _mm256_set1_pd(index_at_col0[1]),
-                z0 = _mm256_set1_pd(index_at_col0[2]);
-  const __m256d dx = _mm256_set1_pd(step[0]), dy = _mm256_set1_pd(step[1]),
-                dz = _mm256_set1_pd(step[2]);
-  const __m256d lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
-  const __m256d half = _mm256_set1_pd(0.5), zero = _mm256_setzero_pd(),
-                white = _mm256_set1_pd(255.0);
   // The last four pixels may overlap the group before them: a pixel's value depends only on its
-  // column, so it is written twice with the same byte rather than left to the portable loop.
+  // column, so it is written twice with the same byte rather than left to a one-pixel loop.
   for (int group = first;; group += kLanes) {
     const int col = std::min(group, last - kLanes + 1);
-    const __m256d c = _mm256_add_pd(_mm256_set1_pd(col), lane);  // whole numbers: exact
-    const __m256d xi = _mm256_add_pd(x0, _mm256_mul_pd(c, dx));
-    const __m256d yi = _mm256_add_pd(y0, _mm256_mul_pd(c, dy));
-    const __m256d zi = _mm256_add_pd(z0, _mm256_mul_pd(c, dz));
-    __m128i i = _mm256_cvttpd_epi32(xi), j = _mm256_cvttpd_epi32(yi), k = _mm256_cvttpd_epi32(zi);
-    if constexpr (kClamp) {
-      i = _mm_min_epi32(i, max_i);
-      j = _mm_min_epi32(j, max_j);
-      k = _mm_min_epi32(k, max_k);
-    }
-    const __m256d fx = _mm256_sub_pd(xi, _mm256_cvtepi32_pd(i));
-    const __m256d fy = _mm256_sub_pd(yi, _mm256_cvtepi32_pd(j));
-    const __m256d fz = _mm256_sub_pd(zi, _mm256_cvtepi32_pd(k));
-    const __m128i p =
-        _mm_add_epi32(i, _mm_add_epi32(_mm_mullo_epi32(j, stride_y), _mm_mullo_epi32(k, stride_z)));
-    alignas(16) int offsets[kLanes];
-    _mm_store_si128(reinterpret_cast<__m128i*>(offsets), p);
-    const __m256d c00 = lerp_x(pairs_at(g.voxels, offsets, 0), fx);
-    const __m256d c10 = lerp_x(pairs_at(g.voxels, offsets, g.step_y), fx);
-    const __m256d c01 = lerp_x(pairs_at(g.voxels, offsets, g.step_z), fx);
-    const __m256d c11 = lerp_x(pairs_at(g.voxels, offsets, g.step_y + g.step_z), fx);
-    const __m256d c0 = lerp(c00, c10, fy);
-    const __m256d c1 = lerp(c01, c11, fy);
-    const __m256d grey = _mm256_min_pd(
-        _mm256_max_pd(
-            _mm256_add_pd(_mm256_add_pd(c0, _mm256_mul_pd(_mm256_sub_pd(c1, c0), fz)), half), zero),
-        white);
-    const __m128i levels = _mm256_cvttpd_epi32(grey);  // 0..255: the packs below keep them
-    const __m128i bytes = _mm_packus_epi16(_mm_packus_epi32(levels, levels), _mm_setzero_si128());
-    const int four = _mm_cvtsi128_si32(bytes);
+    const int four = four_greys<kClamp>(g, l, _mm256_add_pd(_mm256_set1_pd(col), lane));
     std::memcpy(out + col, &four, sizeof four);
     if (col + kLanes > last) break;
   }

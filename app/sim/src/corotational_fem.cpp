@@ -919,7 +919,6 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
     for (int node = begin; node < end; ++node) {
       if (held_[node]) {
         r_.segment<3>(3 * node).setZero();
-        z_.segment<3>(3 * node).setZero();
         p_.segment<3>(3 * node).setZero();
         continue;
       }
@@ -954,10 +953,10 @@ CorotationalFem::PcgResult CorotationalFem::run_pcg(int max_iterations, double t
         sliding_.project(node, r);
         sliding_.project(node, free_rhs);
       }
+      // The first direction is z = M⁻¹ r; z_ is the iterations' own (each computes it from r).
       Eigen::Vector3d z = inverse_diagonal_.segment<3>(3 * node).cwiseProduct(r);
       if (slides) sliding_.project(node, z);
       r_.segment<3>(3 * node) = r;
-      z_.segment<3>(3 * node) = z;
       p_.segment<3>(3 * node) = z;
       sums += Eigen::Vector4d(r.squaredNorm(), free_rhs.squaredNorm(), r.dot(z), 0.0);
     }
