@@ -171,12 +171,15 @@ void FastSlicer::begin_prepare(const Volume<std::uint8_t>& volume,
                  (index.array() <= index_max.array() - kInteriorMarginVoxels).all();
         highest = highest.cwiseMax(index);
       }
-      // A pixel's cell lies within its tet's nodes' cells: the span kernels' last read of the
-      // tet's farthest cell must be in the volume too (the volume's last few voxels are not).
+      // A pixel's index lies within its tet's nodes' (past them by no more than the barycentric
+      // tolerance: the margin covers it), so its cell is at most the nodes' farthest: the span
+      // kernels' last read of that cell must be in the volume too (the volume's last few voxels
+      // are not).
+      const Eigen::Vector3d farthest = highest.array() + kInteriorMarginVoxels;
       tet_inside_volume_[t] =
-          inside && slicer_detail::last_byte_read(grid, static_cast<std::ptrdiff_t>(highest.x()),
-                                                  static_cast<std::ptrdiff_t>(highest.y()),
-                                                  static_cast<std::ptrdiff_t>(highest.z())) <
+          inside && slicer_detail::last_byte_read(grid, static_cast<std::ptrdiff_t>(farthest.x()),
+                                                  static_cast<std::ptrdiff_t>(farthest.y()),
+                                                  static_cast<std::ptrdiff_t>(farthest.z())) <
                         grid.voxel_count;
     }
   }

@@ -119,6 +119,7 @@ template <bool kClamp>
 [[gnu::target("avx2")]] void sample_span(const VoxelGrid& g, const double* index_at_col0,
                                          const double* step, int first, int last,
                                          std::uint8_t* out) {
+  if (last < first) return;
   // Each lane reads a 32-bit word where the portable kernel reads two bytes (voxels i, i + 1):
   // only with a second voxel along x, and, for a clamped span, only where the word's two bytes
   // past them are still in the volume (an inside span's are, by its contract).

@@ -1,7 +1,8 @@
 // The fast slicer's span kernels (internal: app/imaging/src/trilinear_span.hpp): the AVX2 kernels
 // write bitwise what the portable ones write, on spans of every length from one pixel, inside the
 // volume and clamped at its edges (its very last voxels included, where the AVX2 reads would pass
-// its end), on volumes one voxel thick along each axis, and touch no byte outside the span.
+// its end), on volumes one voxel thick along each axis, and touch no byte outside the span (none
+// at all for an empty one).
 
 #include "../../../app/imaging/src/trilinear_span.hpp"
 
@@ -117,6 +118,21 @@ TEST(TrilinearSpan, FastestKernelsWriteThePortableKernelsBytes) {
   }
   EXPECT_GT(inside_spans,
             2500);  // the thin volumes have no whole cell, the 2-voxel cube no safe one
+}
+
+TEST(TrilinearSpan, AnEmptySpanWritesNothing) {
+  // The slicer's rows can clip a span to nothing (last < first); no kernel may write then.
+  const Volume<std::uint8_t> volume = hashed_volume({9, 8, 7});
+  const VoxelGrid grid = voxel_grid_of(volume);
+  const std::array<double, 3> at_col0 = {1.0, 1.0, 1.0}, step = {0.1, 0.0, 0.0};
+  for (const SpanKernels& kernels : {fastest_span_kernels(), portable_span_kernels()}) {
+    for (const SpanKernel kernel : {kernels.inside, kernels.clamped}) {
+      std::vector<std::uint8_t> row(kImageWidth, kUntouched);
+      kernel(grid, at_col0.data(), step.data(), 10, 9, row.data());
+      kernel(grid, at_col0.data(), step.data(), 10, 6, row.data());
+      EXPECT_EQ(row, std::vector<std::uint8_t>(kImageWidth, kUntouched));
+    }
+  }
 }
 
 TEST(TrilinearSpan, LastByteReadOfTheFarthestInsideCellIsInTheVolume) {
