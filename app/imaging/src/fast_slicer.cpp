@@ -161,26 +161,14 @@ void FastSlicer::begin_prepare(const Volume<std::uint8_t>& volume,
     // A new volume (the first frame, or another case): which rest tets stay clear of its edge,
     // so that their pixels need no clipping. Once per volume, not per frame.
     volume_geometry_ = VolumeGeometry::of(volume);
-    const slicer_detail::VoxelGrid grid = slicer_detail::voxel_grid_of(volume);
     for (std::size_t t = 0; t < tets_.size(); ++t) {
       bool inside = true;
-      Eigen::Vector3d highest = Eigen::Vector3d::Zero();
       for (int c = 0; c < 4; ++c) {
         const Eigen::Vector3d index = world_to_index * (rest_mm_[tets_[t][c]] - volume.origin_mm());
         inside = inside && (index.array() >= kInteriorMarginVoxels).all() &&
                  (index.array() <= index_max.array() - kInteriorMarginVoxels).all();
-        highest = highest.cwiseMax(index);
       }
-      // A pixel's index lies within its tet's nodes' (past them by no more than the barycentric
-      // tolerance: the margin covers it), so its cell is at most the nodes' farthest: the span
-      // kernels' last read of that cell must be in the volume too (the volume's last few voxels
-      // are not).
-      const Eigen::Vector3d farthest = highest.array() + kInteriorMarginVoxels;
-      tet_inside_volume_[t] =
-          inside && slicer_detail::last_byte_read(grid, static_cast<std::ptrdiff_t>(farthest.x()),
-                                                  static_cast<std::ptrdiff_t>(farthest.y()),
-                                                  static_cast<std::ptrdiff_t>(farthest.z())) <
-                        grid.voxel_count;
+      tet_inside_volume_[t] = inside;
     }
   }
 }

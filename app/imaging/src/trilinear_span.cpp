@@ -50,7 +50,6 @@ VoxelGrid voxel_grid_of(const Volume<std::uint8_t>& volume) {
   const Eigen::Vector3i n = volume.size();
   VoxelGrid g;
   g.voxels = volume.voxels().data();
-  g.voxel_count = static_cast<std::ptrdiff_t>(volume.voxel_count());
   g.stride_y = n.x();
   g.stride_z = static_cast<std::ptrdiff_t>(n.x()) * n.y();
   g.step_x = n.x() > 1 ? 1 : 0;

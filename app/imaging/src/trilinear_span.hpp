@@ -17,7 +17,6 @@ namespace ultrasim::imaging::slicer_detail {
 // What the span kernels read of the volume, gathered once per slice_rows() call.
 struct VoxelGrid {
   const std::uint8_t* voxels = nullptr;
-  std::ptrdiff_t voxel_count = 0;
   std::ptrdiff_t stride_y = 0, stride_z = 0;  // voxels per index step in j and k
   std::ptrdiff_t step_x = 0, step_y = 0,
                  step_z = 0;            // neighbour offsets (0 along a one-voxel axis)
@@ -26,27 +25,20 @@ struct VoxelGrid {
 
 VoxelGrid voxel_grid_of(const Volume<std::uint8_t>& volume);
 
-// The last byte a kernel may read for a pixel whose trilinear cell's lower corner is (i, j, k):
-// the AVX2 kernels read each pair of voxels along x as a 32-bit word, two bytes past the pair.
-inline std::ptrdiff_t last_byte_read(const VoxelGrid& g, std::ptrdiff_t i, std::ptrdiff_t j,
-                                     std::ptrdiff_t k) {
-  return i + j * g.stride_y + k * g.stride_z + g.step_y + g.step_z + 3;
-}
-
 // A SpanKernel (fast_slicer.hpp) samples at voxel indices index_at_col0 + col · step (three
 // doubles each) for col in [first, last], written to out[col]. The index of each pixel is computed
 // from its column, not stepped from its neighbour's, so that any number of lanes gives the same
 // roundings. A `clamped` kernel lets indices reach the last voxel plane (and 1e-9 beyond either
 // end); an `inside` one needs every pixel's cell whole inside the volume (x in [0, size.x - 1),
-// ...) and last_byte_read() of it inside the volume too, as for tets whose rest position stays
-// clear of the volume's edge and of its last few voxels.
+// ...), as for tets whose rest position stays clear of the volume's edge. Both read only the
+// voxels of each pixel's cell.
 struct SpanKernels {
   SpanKernel inside = nullptr;
   SpanKernel clamped = nullptr;
 };
 
-// One pixel at a time: the reference, and what every CPU runs (the AVX2 kernels too, for spans
-// of fewer than four pixels).
+// One pixel at a time: the reference, and what every CPU runs (the AVX2 kernels too, on a
+// volume one voxel thick along x).
 void portable_inside_span(const VoxelGrid& grid, const double* index_at_col0, const double* step,
                           int first, int last, std::uint8_t* out);
 void portable_clamped_span(const VoxelGrid& grid, const double* index_at_col0, const double* step,

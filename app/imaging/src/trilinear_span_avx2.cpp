@@ -23,8 +23,8 @@ constexpr int kLanes = 4;
 
 #define ULTRASIM_AVX2_INLINE [[gnu::target("avx2"), gnu::always_inline]] inline
 
-// a + (b − a) · f of each lane, with a and b the low and the next byte of each 32-bit word
-// (voxels i and i + 1 along x): the portable kernel's `p[0] + (p[1] − p[0]) · fx`, the byte
+// a + (b − a) · f of each lane, with a and b the low and the high byte of each lane's 16-bit
+// word (voxels i and i + 1 along x): the portable kernel's `p[0] + (p[1] − p[0]) · fx`, the byte
 // difference taken in integers, then converted.
 ULTRASIM_AVX2_INLINE __m256d lerp_x(__m128i words, __m256d f) {
   const __m128i byte = _mm_set1_epi32(0xFF);
@@ -48,15 +48,6 @@ ULTRASIM_AVX2_INLINE __m128i pairs_at(const std::uint8_t* voxels, const int* off
 
 ULTRASIM_AVX2_INLINE __m256d lerp(__m256d a, __m256d b, __m256d f) {
   return _mm256_add_pd(a, _mm256_mul_pd(_mm256_sub_pd(b, a), f));
-}
-
-// The largest index truncation gives along the span, clamped as the kernel clamps it: the index
-// is monotonic in the column, so it is the larger of the two ends'.
-int largest_index(double at_col0, double step, int first, int last, int clamp_to) {
-  const double c_first = first, c_last = last;
-  const int i = std::max(static_cast<int>(at_col0 + c_first * step),
-                         static_cast<int>(at_col0 + c_last * step));
-  return std::min(i, clamp_to);
 }
 
 // What every group of four pixels of a span needs, broadcast to the lanes once per span.
@@ -120,14 +111,9 @@ template <bool kClamp>
                                          const double* step, int first, int last,
                                          std::uint8_t* out) {
   if (last < first) return;
-  // Each lane reads a 32-bit word where the portable kernel reads two bytes (voxels i, i + 1):
-  // only with a second voxel along x, and, for a clamped span, only where the word's two bytes
-  // past them are still in the volume (an inside span's are, by its contract).
-  if (g.step_x != 1 ||
-      (kClamp && last_byte_read(g, largest_index(index_at_col0[0], step[0], first, last, g.max_i),
-                                largest_index(index_at_col0[1], step[1], first, last, g.max_j),
-                                largest_index(index_at_col0[2], step[2], first, last, g.max_k)) >=
-                     g.voxel_count)) {
+  // Each lane reads its voxels i and i + 1 along x as one 16-bit word: only with a second voxel
+  // along x (the portable kernel reads voxel i twice without one).
+  if (g.step_x != 1) {
     (kClamp ? portable_clamped_span : portable_inside_span)(g, index_at_col0, step, first, last,
                                                             out);
     return;
