@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cstddef>
+#include <stdexcept>
+#include <string>
 
 namespace ultrasim::geometry {
 
@@ -20,6 +22,52 @@ void compute_vertex_normals(std::span<const Eigen::Vector3d> positions_mm,
   for (Eigen::Vector3d& n : normals_out) {
     const double length = n.norm();
     n = length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
+  }
+}
+
+SharedVertexNormals::SharedVertexNormals(int vertex_count, std::span<const Triangle> triangles)
+    : triangles_(triangles.begin(), triangles.end()),
+      first_incident_(static_cast<std::size_t>(std::max(vertex_count, 0)) + 1, 0),
+      incident_(3 * triangles.size()),
+      triangle_normals_(triangles.size()) {
+  for (const Triangle& t : triangles_) {
+    for (const std::int32_t v : t) {
+      if (v < 0 || v >= vertex_count) {
+        throw std::invalid_argument("SharedVertexNormals: a triangle's vertex index " +
+                                    std::to_string(v) + " is outside the " +
+                                    std::to_string(vertex_count) + " vertices");
+      }
+      ++first_incident_[static_cast<std::size_t>(v) + 1];
+    }
+  }
+  for (std::size_t v = 1; v < first_incident_.size(); ++v) {
+    first_incident_[v] += first_incident_[v - 1];
+  }
+  std::vector<int> next(first_incident_.begin(), first_incident_.end() - 1);
+  for (std::size_t t = 0; t < triangles_.size(); ++t) {
+    for (const std::int32_t v : triangles_[t]) incident_[next[v]++] = static_cast<int>(t);
+  }
+}
+
+void SharedVertexNormals::triangle_normals(std::span<const Eigen::Vector3d> positions_mm, int begin,
+                                           int end) {
+  for (int t = begin; t < end; ++t) {
+    const Triangle& tri = triangles_[t];
+    const Eigen::Vector3d& a = positions_mm[tri[0]];
+    // As compute_vertex_normals: twice the area along the normal, so large triangles weigh more.
+    triangle_normals_[t] = (positions_mm[tri[1]] - a).cross(positions_mm[tri[2]] - a);
+  }
+}
+
+void SharedVertexNormals::vertex_normals(int begin, int end,
+                                         std::span<Eigen::Vector3d> normals_out) const {
+  for (int v = begin; v < end; ++v) {
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    for (int i = first_incident_[v]; i < first_incident_[v + 1]; ++i) {
+      n += triangle_normals_[incident_[i]];
+    }
+    const double length = n.norm();
+    normals_out[v] = length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
   }
 }
 

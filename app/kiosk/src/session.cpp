@@ -284,13 +284,19 @@ void Session::update_bscan() {
 
 void Session::update_view() {
   const auto deformed = engine_->deformed_positions_mm();
-  // Only the surface's nodes: the wireframe draws nothing else.
-  for (std::size_t v = 0; v < tissue_.view_nodes.size(); ++v) {
-    const std::uint32_t n = tissue_.view_nodes[v];
-    for (int a = 0; a < 3; ++a) node_positions_[3 * v + a] = static_cast<float>(deformed[n][a]);
-    node_displacement_[v] =
-        static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
-  }
+  // Only the surface's nodes: the wireframe draws nothing else (the large case's 12,000: 0.07 ms
+  // on one thread).
+  constexpr int kChunkNodes = 2048;
+  const int view_nodes = static_cast<int>(tissue_.view_nodes.size());
+  hal::parallel_for(jobs_, (view_nodes + kChunkNodes - 1) / kChunkNodes, [&](int chunk) {
+    const int end = std::min(view_nodes, (chunk + 1) * kChunkNodes);
+    for (int v = chunk * kChunkNodes; v < end; ++v) {
+      const std::uint32_t n = tissue_.view_nodes[v];
+      for (int a = 0; a < 3; ++a) node_positions_[3 * v + a] = static_cast<float>(deformed[n][a]);
+      node_displacement_[v] =
+          static_cast<float>((deformed[n] - tissue_.mesh.rest_positions_mm[n]).norm());
+    }
+  });
   structures_.update(deformed, jobs_);
   // The skin over the tissue and around it, struck by the probe (it is the view's: it moves
   // when the view is refreshed, by the time since it last moved: a frame's at least, at most

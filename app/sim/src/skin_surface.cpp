@@ -88,6 +88,8 @@ bool SkinSurface::step(const ProbeCollider* probe,
   for (std::size_t k = 0; k < driven_.size(); ++k) {
     position_[static_cast<std::size_t>(driven_[k])] = driven_positions_mm[k];
     velocity_[static_cast<std::size_t>(driven_[k])].setZero();
+    // Its springs' pulls add up over the frame's substeps, unread: bounded, not carried over.
+    force_[static_cast<std::size_t>(driven_[k])].setZero();
   }
   // The settings' substeps keep a 60 Hz frame stable; a longer step takes as many more.
   constexpr double kDesignFrameS = 1.0 / 60.0;
@@ -98,8 +100,14 @@ bool SkinSurface::step(const ProbeCollider* probe,
   const double mass_kg = settings_.node_mass_g * 1e-3;
   // N/mm on mm gives N; over kg gives m/s², which is 1000 mm/s².
   const double accel_mm_per_n = 1e3 / mass_kg;
+  // Only a node inside the probe's box can be inside the probe: the box spares most nodes the
+  // distance query (the large case's 560 free nodes five times a frame: ~0.1 ms of the view).
+  Eigen::AlignedBox3d probe_box;
+  probe_box.setEmpty();  // holds no point
+  if (probe != nullptr) probe_box = probe->bounds_mm();
   for (int s = 0; s < substeps; ++s) {
-    for (std::size_t n = 0; n < rest_.size(); ++n) {
+    // Only the free nodes move: a driven node's force is never read.
+    for (const std::uint32_t n : free_) {
       force_[n] = settings_.anchor_stiffness_n_per_mm * (rest_[n] - position_[n]);
     }
     for (std::size_t e = 0; e < edges_.size(); ++e) {
@@ -119,7 +127,7 @@ bool SkinSurface::step(const ProbeCollider* probe,
       position_[n] += h * velocity_[n];
       // The probe cannot be entered: a node inside it goes down the beam to the face (the skin
       // is pressed, not pushed sideways), or where that is not out, to the nearest surface.
-      if (probe != nullptr && probe->signed_distance_mm(position_[n]) < 0.0) {
+      if (probe_box.contains(position_[n]) && probe->signed_distance_mm(position_[n]) < 0.0) {
         const Eigen::Vector3d beam = probe->beam_axis();
         const double to_face = (probe->face_center_mm() - position_[n]).dot(beam);
         Eigen::Vector3d out = position_[n] + std::max(to_face, 0.0) * beam;

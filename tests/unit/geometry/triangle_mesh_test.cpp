@@ -2,6 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
 namespace ultrasim::geometry {
 namespace {
 
@@ -72,6 +80,67 @@ TEST(TriangleMesh, UnusedVertexGetsZeroNormal) {
   TriangleMesh mesh = box(1, 1, 1);
   mesh.vertices_mm.emplace_back(9, 9, 9);
   EXPECT_EQ(vertex_normals(mesh).back(), Eigen::Vector3d::Zero());
+}
+
+// A wrinkled sheet of n × n vertices: triangles of every size and orientation, a few slivers.
+TriangleMesh wrinkled_sheet(int n) {
+  TriangleMesh mesh;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> jitter(-0.4, 0.4);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      mesh.vertices_mm.emplace_back(i + jitter(rng), j + jitter(rng),
+                                    std::sin(0.7 * i) * std::cos(0.3 * j) + jitter(rng));
+    }
+  }
+  for (int j = 0; j + 1 < n; ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const int a = j * n + i, b = a + 1, c = a + n + 1, d = a + n;
+      mesh.triangles.push_back({a, b, c});
+      mesh.triangles.push_back({a, c, d});
+    }
+  }
+  return mesh;
+}
+
+TEST(SharedVertexNormals, GiveComputeVertexNormalsBitsInAnySplit) {
+  TriangleMesh mesh = wrinkled_sheet(40);
+  mesh.triangles.push_back({0, 0, 1});  // degenerate: a corner twice
+  std::shuffle(mesh.triangles.begin(), mesh.triangles.end(), std::mt19937(11));
+  mesh.vertices_mm.emplace_back(9, 9, 9);  // in no triangle
+  std::vector<Eigen::Vector3d> reference(mesh.vertices_mm.size());
+  compute_vertex_normals(mesh.vertices_mm, mesh.triangles, reference);
+
+  SharedVertexNormals shared(mesh.vertex_count(), mesh.triangles);
+  for (const int pieces : {1, 3, 17}) {
+    SCOPED_TRACE(pieces);
+    std::vector<Eigen::Vector3d> normals(mesh.vertices_mm.size(), Eigen::Vector3d::Constant(7));
+    // Backwards, so no piece runs in the order one loop would.
+    for (int p = pieces - 1; p >= 0; --p) {
+      shared.triangle_normals(mesh.vertices_mm, p * mesh.triangle_count() / pieces,
+                              (p + 1) * mesh.triangle_count() / pieces);
+    }
+    for (int p = pieces - 1; p >= 0; --p) {
+      shared.vertex_normals(p * mesh.vertex_count() / pieces,
+                            (p + 1) * mesh.vertex_count() / pieces, normals);
+    }
+    for (int v = 0; v < mesh.vertex_count(); ++v) {
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(normals[v][a]),
+                  std::bit_cast<std::uint64_t>(reference[v][a]))
+            << "vertex " << v << " axis " << a;
+      }
+    }
+  }
+  EXPECT_EQ(reference.back(), Eigen::Vector3d::Zero());
+  EXPECT_NEAR(reference.front().norm(), 1.0, 1e-12);
+}
+
+TEST(SharedVertexNormals, RejectATriangleOutsideTheVertices) {
+  const TriangleMesh mesh = box(1, 1, 1);
+  EXPECT_THROW(SharedVertexNormals(7, mesh.triangles), std::invalid_argument);
+  const std::vector<Triangle> negative = {{0, 1, -1}};
+  EXPECT_THROW(SharedVertexNormals(8, negative), std::invalid_argument);
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The deformed display surfaces against the embedding and normals worked out surface by surface:
-// the per-frame update splits the vertices into chunks across surfaces and must give the same
-// floats.
+// the per-frame update splits the vertices and triangles into chunks across surfaces, run on one
+// thread or two, and must give the same floats.
 
 #include "ultrasim/kiosk/display_surfaces.hpp"
 
@@ -9,6 +9,7 @@
 #include <cmath>
 #include <vector>
 
+#include "two_thread_jobs.hpp"
 #include "ultrasim/geometry/tet_mesh.hpp"
 #include "ultrasim/geometry/triangle_mesh.hpp"
 #include "ultrasim/hal/job_system.hpp"
@@ -50,28 +51,33 @@ TEST(DeformedSurfaces, MatchTheEmbeddingAndNormalsOfEachSurface) {
     deformed.push_back(p + Eigen::Vector3d(0.1 * std::sin(0.2 * p.y()), 0.05 * p.x(), dent));
   }
   DeformedSurfaces deformed_surfaces(surfaces);
-  hal::InlineJobSystem jobs;
-  deformed_surfaces.update(deformed, jobs);
+  hal::InlineJobSystem inline_jobs;
+  testing::TwoThreadJobs two_threads;
+  for (hal::JobSystem* jobs :
+       {static_cast<hal::JobSystem*>(&inline_jobs), static_cast<hal::JobSystem*>(&two_threads)}) {
+    SCOPED_TRACE(jobs->thread_count());
+    deformed_surfaces.update(deformed, *jobs);
 
-  ASSERT_EQ(deformed_surfaces.views().size(), surfaces.size());
-  for (std::size_t s = 0; s < surfaces.size(); ++s) {
-    SCOPED_TRACE(surfaces[s].label);
-    const std::size_t n = surfaces[s].rest.vertices_mm.size();
-    std::vector<Eigen::Vector3d> positions(n), normals(n);
-    surfaces[s].embedding.update(deformed, positions);
-    geometry::compute_vertex_normals(positions, surfaces[s].rest.triangles, normals);
-    const render::SurfaceView& view = deformed_surfaces.views()[s];
-    ASSERT_EQ(view.positions_mm.size(), 3 * n);
-    ASSERT_EQ(view.normals.size(), 3 * n);
-    int moved = 0;
-    for (std::size_t v = 0; v < n; ++v) {
-      for (int a = 0; a < 3; ++a) {
-        ASSERT_EQ(view.positions_mm[3 * v + a], static_cast<float>(positions[v][a])) << v;
-        ASSERT_EQ(view.normals[3 * v + a], static_cast<float>(normals[v][a])) << v;
+    ASSERT_EQ(deformed_surfaces.views().size(), surfaces.size());
+    for (std::size_t s = 0; s < surfaces.size(); ++s) {
+      SCOPED_TRACE(surfaces[s].label);
+      const std::size_t n = surfaces[s].rest.vertices_mm.size();
+      std::vector<Eigen::Vector3d> positions(n), normals(n);
+      surfaces[s].embedding.update(deformed, positions);
+      geometry::compute_vertex_normals(positions, surfaces[s].rest.triangles, normals);
+      const render::SurfaceView& view = deformed_surfaces.views()[s];
+      ASSERT_EQ(view.positions_mm.size(), 3 * n);
+      ASSERT_EQ(view.normals.size(), 3 * n);
+      int moved = 0;
+      for (std::size_t v = 0; v < n; ++v) {
+        for (int a = 0; a < 3; ++a) {
+          ASSERT_EQ(view.positions_mm[3 * v + a], static_cast<float>(positions[v][a])) << v;
+          ASSERT_EQ(view.normals[3 * v + a], static_cast<float>(normals[v][a])) << v;
+        }
+        moved += (positions[v] - surfaces[s].rest.vertices_mm[v]).norm() > 1e-3;
       }
-      moved += (positions[v] - surfaces[s].rest.vertices_mm[v]).norm() > 1e-3;
+      EXPECT_GT(moved, static_cast<int>(n / 2)) << "the press must move the surface";
     }
-    EXPECT_GT(moved, static_cast<int>(n / 2)) << "the press must move the surface";
   }
 }
 

@@ -49,14 +49,16 @@ class DeformedSurfaces {
     std::vector<Eigen::Vector3d> positions, normals;
     std::vector<float> positions_f, normals_f;
   };
-  // A run of one surface's vertices, updated as one task.
+  // A run of one surface's vertices or triangles, updated as one task.
   struct Chunk {
     int surface, begin, end;
   };
-  static constexpr std::size_t kChunkVertices = 1024;
+  static constexpr int kChunkVertices = 1024;
+  static constexpr int kChunkTriangles = 2048;
   std::span<const DisplaySurface> surfaces_;
   std::vector<Buffers> buffers_;
-  std::vector<Chunk> chunks_;
+  std::vector<geometry::SharedVertexNormals> normals_;  // a surface's
+  std::vector<Chunk> vertex_chunks_, triangle_chunks_;
   std::vector<render::SurfaceView> views_;
 };
 
