@@ -315,6 +315,7 @@ void Session::slice_in_parallel(const imaging::ProbePose& probe) {
   if (fast_slicer_) {
     const int parts = std::min(2 * jobs_.thread_count(), imaging::FastSlicer::kMaxParts);
     fast_slicer_->begin_prepare(tissue_.volume, deformed, probe, parts);
+    hal::parallel_for(jobs_, parts, [&](int part) { fast_slicer_->classify_nodes(part); });
     hal::parallel_for(jobs_, parts, [&](int part) { fast_slicer_->find_cuts(part); });
     fast_slicer_->end_prepare();
   } else {

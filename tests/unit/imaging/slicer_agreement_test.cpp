@@ -357,6 +357,61 @@ TEST(SlicerKernels, FastestAndPortableSamplingGiveTheSameImage) {
   EXPECT_GT(inside, pixels / 5) << "the poses should see tissue";
 }
 
+TEST(SlicerTetScan, RunsPassedOverGiveTheSameImageAsEveryTetLookedAt) {
+  // Runs of tets passed over on their nodes' sides against every tet looked at: random poses and
+  // deformations, planes through rows of nodes (nodes on the plane, tets that only touch it), a
+  // mesh in grid order (every run listed) and the same tets shuffled (no run listed). Bitwise.
+  const geometry::TetMesh ordered = grid_mesh({16, 8, 8});
+  geometry::TetMesh shuffled = ordered;
+  std::shuffle(shuffled.tets.begin(), shuffled.tets.end(), std::mt19937(17));
+  const Volume<std::uint8_t> volume = textured_volume(kMeshMin, kMeshMax);
+  const BscanGrid grid(linear_probe(), 131, 97);
+  std::mt19937 rng(5011);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  long inside = 0;
+  for (const geometry::TetMesh* mesh :
+       {&ordered, static_cast<const geometry::TetMesh*>(&shuffled)}) {
+    FastSlicer by_runs(*mesh, grid);
+    FastSlicer every_tet(*mesh, grid, FastSlicer::Sampling::kFastest,
+                         FastSlicer::TetScan::kEveryTet);
+    const std::size_t n = static_cast<std::size_t>(grid.width_px()) * grid.height_px();
+    std::vector<std::uint8_t> a(n), b(n);
+    BscanSettings settings;
+    settings.background_grey = kBackground;
+    const auto compare = [&](const std::vector<Eigen::Vector3d>& deformed, const ProbePose& pose,
+                             const char* what, int k) {
+      by_runs.prepare(volume, deformed, pose);
+      by_runs.slice(settings, a);
+      every_tet.prepare(volume, deformed, pose);
+      every_tet.slice(settings, b);
+      ASSERT_EQ(by_runs.cut_tet_count(), every_tet.cut_tet_count()) << what << " " << k;
+      ASSERT_EQ(a, b) << what << " " << k;
+      inside += std::ranges::count_if(a, [](std::uint8_t g) { return g != kBackground; });
+    };
+    for (int k = 0; k < 20; ++k) {
+      const auto deformed = random_deformation(*mesh, rng, k % 2 == 1);
+      ProbePose pose;
+      pose.face_center_mm = Eigen::Vector3d(unit(rng) * 14, unit(rng) * 7, unit(rng) * 5);
+      pose.axes = random_rotation(rng);
+      compare(deformed, pose, "random pose", k);
+    }
+    // The image plane through the rest mesh's node planes x = const and y = const (the beam
+    // along z): nodes on the plane, tets on both sides touching it only there.
+    const double dx = (kMeshMax.x() - kMeshMin.x()) / 15, dy = (kMeshMax.y() - kMeshMin.y()) / 7;
+    for (int k = 0; k < 6; ++k) {
+      ProbePose pose;
+      pose.face_center_mm = Eigen::Vector3d(kMeshMin.x() + (3 + 2 * k) * dx, 0.0, 0.0);
+      pose.axes = Eigen::Matrix3d::Identity();  // lateral x, elevation y: the plane y = 0
+      pose.face_center_mm.y() = kMeshMin.y() + (1 + k) * dy;
+      compare(mesh->rest_positions_mm, pose, "plane y on nodes", k);
+      pose.axes.col(0) = Eigen::Vector3d::UnitY();  // lateral y, elevation −x: the plane x = c
+      pose.axes.col(1) = -Eigen::Vector3d::UnitX();
+      compare(mesh->rest_positions_mm, pose, "plane x on nodes", k);
+    }
+  }
+  EXPECT_GT(inside, 0) << "the poses should see tissue";
+}
+
 TEST(SlicerThreads, RowsSplitOverTwoThreadsGiveTheSameImageAsOneCall) {
   const geometry::TetMesh mesh = grid_mesh({16, 8, 8});
   const auto volume = textured_volume(kMeshMin, kMeshMax);
@@ -406,6 +461,11 @@ TEST(SlicerThreads, PreparingInPartsOnTwoThreadsGivesTheSameImage) {
   for (const int part_count : {1, 2, 3, 7, FastSlicer::kMaxParts}) {
     parts.begin_prepare(volume, deformed, pose, part_count);
     // Odd parts on a second thread, even parts on this one.
+    std::thread classify([&] {
+      for (int part = 1; part < part_count; part += 2) parts.classify_nodes(part);
+    });
+    for (int part = 0; part < part_count; part += 2) parts.classify_nodes(part);
+    classify.join();
     std::thread worker([&] {
       for (int part = 1; part < part_count; part += 2) parts.find_cuts(part);
     });
