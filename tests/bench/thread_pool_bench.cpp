@@ -6,10 +6,12 @@
 // holds a core for a 3-8 ms slice about twice a second), all on the same cores, unpinned. Each
 // run: two tasks of ~`task_us` spinning, the frame's shape (two sub-volumes side by side); the two
 // pools alternate run by run, so both see the same machine. Counters: each one's run time, p50,
-// p99 and max (µs), and the reference's over ThreadPool's.
+// p99 and max (µs), and the reference's over ThreadPool's. BM_RunBursts: the workers' watch for
+// the next run before they sleep, against workers that sleep at once.
 //   build/ci/tests/bench/thread_pool_bench
 
 #include <benchmark/benchmark.h>
+#include <sched.h>
 
 #include <algorithm>
 #include <atomic>
@@ -21,6 +23,7 @@
 #include <thread>
 #include <vector>
 
+#include "ultrasim/drivers/posix/realtime.hpp"
 #include "ultrasim/drivers/posix/thread_pool.hpp"
 
 namespace {
@@ -166,6 +169,68 @@ BENCHMARK(BM_RunWhileACoreIsTaken)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->MinTime(5.0);
+
+// A frame's runs come in bursts: the stitched steps' batches, the B-scan's passes, the view's,
+// a few tens of microseconds apart, then the rendering (milliseconds) without any. ThreadPool's
+// workers watch kPollBeforeSleep for the next run before they sleep; the reference is the same
+// pool whose workers sleep at once (poll 0), woken through the condition variable each run. The
+// pools alternate burst by burst; `pinned` 1 puts the caller and the worker on cores of their
+// own (the kiosk's --realtime, without SCHED_FIFO), 0 leaves them to the OS. Counters: each
+// one's run time p50 / p90 (µs), and the reference's mean over ThreadPool's.
+void BM_RunBursts(benchmark::State& state) {
+  const std::chrono::microseconds task(state.range(0)), between(state.range(1));
+  const bool pinned = state.range(2) != 0;
+  constexpr int kRunsABurst = 8;
+  drivers::posix::RealtimeRequest cores;
+  cores.lock_memory = false;
+  cores.fifo = false;
+  const drivers::posix::RealtimeRequest* request = pinned ? &cores : nullptr;
+  drivers::posix::ThreadPool pool(2, request);
+  drivers::posix::ThreadPool reference(2, request, std::chrono::microseconds::zero());
+  if (pinned) drivers::posix::make_this_thread_realtime(cores, 0);
+  std::vector<double> ours, theirs;
+  const auto burst = [&](hal::JobSystem& jobs, std::vector<double>& times) {
+    double total = 0.0;
+    for (int r = 0; r < kRunsABurst; ++r) {
+      const auto t0 = Clock::now();
+      hal::parallel_for(jobs, 2, [&](int) { spin_for(task); });
+      const double us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+      times.push_back(us);
+      total += us;
+      spin_for(between);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the rendering
+    return total;
+  };
+  for (auto _ : state) {
+    const double a = burst(pool, ours);
+    const double b = burst(reference, theirs);
+    state.SetIterationTime((a + b) * 1e-6);
+  }
+  if (pinned) {
+    // Back on every core, as the thread came.
+    cpu_set_t all;
+    CPU_ZERO(&all);
+    for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu) CPU_SET(cpu, &all);
+    sched_setaffinity(0, sizeof(all), &all);
+  }
+  state.counters["pool_p50_us"] = percentile(ours, 0.5);
+  state.counters["pool_p90_us"] = percentile(ours, 0.9);
+  state.counters["ref_p50_us"] = percentile(theirs, 0.5);
+  state.counters["ref_p90_us"] = percentile(theirs, 0.9);
+  state.counters["ref/pool_mean"] = std::accumulate(theirs.begin(), theirs.end(), 0.0) /
+                                    std::accumulate(ours.begin(), ours.end(), 0.0);
+}
+
+BENCHMARK(BM_RunBursts)
+    ->ArgNames({"task_us", "between_us", "pinned"})
+    ->Args({50, 10, 0})   // the view's passes
+    ->Args({300, 20, 0})  // two sub-volumes' steps side by side
+    ->Args({50, 10, 1})
+    ->Args({300, 20, 1})
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->MinTime(3.0);
 
 }  // namespace
 

@@ -5,7 +5,9 @@
 
 namespace ultrasim::drivers::posix {
 
-ThreadPool::ThreadPool(int thread_count, const RealtimeRequest* realtime) {
+ThreadPool::ThreadPool(int thread_count, const RealtimeRequest* realtime,
+                       std::chrono::microseconds poll_before_sleep)
+    : poll_before_sleep_(poll_before_sleep) {
   const int workers = std::max(thread_count, 1) - 1;
   workers_.reserve(static_cast<std::size_t>(workers));
   if (realtime != nullptr) worker_realtime_.resize(static_cast<std::size_t>(workers));
@@ -36,7 +38,7 @@ void ThreadPool::drain() {
 
 void ThreadPool::worker_loop() {
   std::uint64_t seen = 0;
-  while (gate_.join_next(seen)) {
+  while (gate_.join_next(seen, poll_before_sleep_)) {
     drain();
     gate_.leave();
   }

@@ -61,6 +61,33 @@ TEST(WorkerGate, AWorkerJoinsEachBatchAtMostOnce) {
   EXPECT_FALSE(again.get());
 }
 
+// A worker that polls before it sleeps keeps the gate's rules: it joins a batch opened while it
+// polls, or after it went to sleep, each at most once, never one already closed; stop() ends it.
+TEST(WorkerGate, APollingWorkerJoinsEachOpenBatchOnce) {
+  WorkerGate gate;
+  std::uint64_t seen = 0;
+  gate.open();
+  gate.close_and_wait();  // batch 1: closed before the worker comes
+  auto joined = std::async(std::launch::async, [&] { return gate.join_next(seen, 20ms); });
+  EXPECT_EQ(joined.wait_for(60ms), std::future_status::timeout) << "batch 1 is closed";
+  gate.open();  // batch 2: found by a sleeping worker
+  ASSERT_TRUE(joined.get());
+  EXPECT_EQ(seen, 2u);
+  gate.leave();
+  gate.close_and_wait();
+  auto polled = std::async(std::launch::async, [&] { return gate.join_next(seen, 10s); });
+  EXPECT_EQ(polled.wait_for(30ms), std::future_status::timeout) << "still batch 2";
+  gate.open();  // batch 3: found while polling
+  ASSERT_TRUE(polled.get());
+  EXPECT_EQ(seen, 3u);
+  gate.leave();
+  auto again = std::async(std::launch::async, [&] { return gate.join_next(seen, 10ms); });
+  EXPECT_EQ(again.wait_for(50ms), std::future_status::timeout) << "batch 3 only once";
+  gate.stop();
+  EXPECT_FALSE(again.get());
+  gate.close_and_wait();
+}
+
 TEST(WorkerGate, StopReleasesAWaitingWorker) {
   WorkerGate gate;
   std::uint64_t seen = 0;

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 #include <vector>
 
@@ -14,14 +15,20 @@ namespace ultrasim::drivers::posix {
 // hal::JobSystem on a fixed set of worker threads started once. run() wakes the workers, hands
 // out task indices through an atomic counter (the caller takes its share too, and all of them
 // while no worker has come) and waits until every task has finished, not for workers that took
-// none (WorkerGate). Nothing is allocated per run. post_background() goes to one more
-// thread at idle priority (BackgroundThread), never realtime.
+// none (WorkerGate). A worker done with a run watches for the next a while before it sleeps.
+// Nothing is allocated per run. post_background() goes to one more thread at idle priority
+// (BackgroundThread), never realtime.
 class ThreadPool final : public hal::JobSystem {
  public:
+  // How long a worker that finished a run watches for the next before it sleeps
+  // (WorkerGate::join_next): longer than the gaps between a frame's runs, short against the frame.
+  static constexpr std::chrono::microseconds kPollBeforeSleep{200};
+
   // thread_count includes the calling thread: ThreadPool(2) starts one worker. Values < 1 → 1.
   // With `realtime`, worker i becomes frame thread i + 1 (make_this_thread_realtime) before the
   // constructor returns; the caller is frame thread 0 and sets itself up.
-  explicit ThreadPool(int thread_count, const RealtimeRequest* realtime = nullptr);
+  explicit ThreadPool(int thread_count, const RealtimeRequest* realtime = nullptr,
+                      std::chrono::microseconds poll_before_sleep = kPollBeforeSleep);
   ~ThreadPool() override;
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
@@ -39,6 +46,7 @@ class ThreadPool final : public hal::JobSystem {
   void worker_loop();
   void drain();  // runs tasks of the current batch until none is left
 
+  std::chrono::microseconds poll_before_sleep_;
   std::vector<std::thread> workers_;
   std::vector<ThreadRealtime> worker_realtime_;
   WorkerGate gate_;
