@@ -198,11 +198,6 @@ void FastSlicer::classify_nodes(int part) {
 }
 
 void FastSlicer::find_cuts(int part) {
-  const PixelPlane& plane = frame_->plane;
-  const Eigen::Matrix3d& world_to_index = frame_->world_to_index;
-  const Eigen::Vector3d& index_max = frame_->index_max;
-  const Volume<std::uint8_t>& volume = *volume_;
-  const auto& x = positions_mm_;
   std::vector<CutTet>& cuts = part_cuts_[part];
   cuts.clear();
   const std::size_t tet_count = tets_.size();
@@ -214,91 +209,97 @@ void FastSlicer::find_cuts(int part) {
       t = run_end;
       continue;
     }
-    for (; t < run_end; ++t) {
-      const geometry::Tet& tet = tets_[t];
-      const int sides =
-          node_side_[tet[0]] | node_side_[tet[1]] | node_side_[tet[2]] | node_side_[tet[3]];
-      if ((sides & (kAbove | kBelow)) != (kAbove | kBelow) && (sides & kOnPlane) == 0) continue;
-      const std::array<double, 4> d = {node_distance_mm_[tet[0]], node_distance_mm_[tet[1]],
-                                       node_distance_mm_[tet[2]], node_distance_mm_[tet[3]]};
+    for (; t < run_end; ++t) add_cut(t, cuts);
+  }
+}
 
-      // Rows the cut polygon spans: its vertices are where edges cross the plane, plus nodes on it.
-      constexpr double kInf = std::numeric_limits<double>::infinity();
-      Eigen::Vector2d lo(kInf, kInf), hi(-kInf, -kInf);
-      const auto add = [&](const Eigen::Vector3d& q) {
-        const Eigen::Vector2d px = plane.pixel_of(q);
-        lo = lo.cwiseMin(px);
-        hi = hi.cwiseMax(px);
-      };
-      for (int a = 0; a < 4; ++a) {
-        if (std::abs(d[a]) <= kOnPlaneMm) add(x[tet[a]] - d[a] * plane.unit_normal);
-        for (int b = a + 1; b < 4; ++b) {
-          if ((d[a] < 0 && d[b] > 0) || (d[a] > 0 && d[b] < 0)) {
-            add(x[tet[a]] + (x[tet[b]] - x[tet[a]]) * (d[a] / (d[a] - d[b])));
-          }
-        }
+void FastSlicer::add_cut(std::size_t t, std::vector<CutTet>& cuts) const {
+  const PixelPlane& plane = frame_->plane;
+  const Eigen::Matrix3d& world_to_index = frame_->world_to_index;
+  const Eigen::Vector3d& index_max = frame_->index_max;
+  const Volume<std::uint8_t>& volume = *volume_;
+  const auto& x = positions_mm_;
+  const geometry::Tet& tet = tets_[t];
+  const int sides =
+      node_side_[tet[0]] | node_side_[tet[1]] | node_side_[tet[2]] | node_side_[tet[3]];
+  if ((sides & (kAbove | kBelow)) != (kAbove | kBelow) && (sides & kOnPlane) == 0) return;
+  const std::array<double, 4> d = {node_distance_mm_[tet[0]], node_distance_mm_[tet[1]],
+                                   node_distance_mm_[tet[2]], node_distance_mm_[tet[3]]};
+
+  // Rows the cut polygon spans: its vertices are where edges cross the plane, plus nodes on it.
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  Eigen::Vector2d lo(kInf, kInf), hi(-kInf, -kInf);
+  const auto add = [&](const Eigen::Vector3d& q) {
+    const Eigen::Vector2d px = plane.pixel_of(q);
+    lo = lo.cwiseMin(px);
+    hi = hi.cwiseMax(px);
+  };
+  for (int a = 0; a < 4; ++a) {
+    if (std::abs(d[a]) <= kOnPlaneMm) add(x[tet[a]] - d[a] * plane.unit_normal);
+    for (int b = a + 1; b < 4; ++b) {
+      if ((d[a] < 0 && d[b] > 0) || (d[a] > 0 && d[b] < 0)) {
+        add(x[tet[a]] + (x[tet[b]] - x[tet[a]]) * (d[a] / (d[a] - d[b])));
       }
-      if (hi.x() < -kRowMarginPx || lo.x() > width_px_ - 1 + kRowMarginPx ||
-          hi.y() < -kRowMarginPx || lo.y() > height_px_ - 1 + kRowMarginPx) {
-        continue;
-      }
-      CutTet cut;
-      cut.row_min = std::max(0, static_cast<int>(std::ceil(lo.y() - kRowMarginPx)));
-      cut.row_max = std::min(height_px_ - 1, static_cast<int>(std::floor(hi.y() + kRowMarginPx)));
-      if (cut.row_min > cut.row_max) continue;
-
-      // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
-      const Eigen::Vector3d& p0 = x[tet[0]];
-      const Eigen::Matrix3d edges = geometry::tet_edge_matrix(x, tet);
-      if (!geometry::usable_tet(edges)) continue;
-
-      // Barycentric coordinates (1..3 from the edge matrix's inverse, 0 as the rest) of the pixel
-      // centres: affine in (col, row) because the plane is.
-      const Eigen::Matrix3d inverse = edges.inverse();
-      const Eigen::Vector3d at_origin = inverse * (plane.origin_mm - p0);
-      const Eigen::Vector3d per_col = inverse * plane.per_col_mm;
-      const Eigen::Vector3d per_row = inverse * plane.per_row_mm;
-      cut.first_in_tet.fill({-kOpen, 0.0});
-      cut.last_in_tet.fill({kOpen, 0.0});
-      std::size_t next_first = 0, next_last = 0;
-      add_bound({1.0 - at_origin.sum(), -per_col.sum(), -per_row.sum(), -kBarycentricTolerance},
-                cut.first_in_tet, next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
-      for (int a = 0; a < 3; ++a) {
-        add_bound({at_origin[a], per_col[a], per_row[a], -kBarycentricTolerance}, cut.first_in_tet,
-                  next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
-      }
-      if (cut.row_min > cut.row_max) continue;
-
-      // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
-      const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
-      const Eigen::Matrix3d to_index = world_to_index * geometry::tet_edge_matrix(rest_mm_, tet);
-      cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
-      cut.index_per_col = to_index * per_col;
-      cut.index_per_row = to_index * per_row;
-
-      cut.clip_to_volume = !tet_inside_volume_[t];
-      cut.first_in_volume.fill({-kOpen, 0.0});
-      cut.last_in_volume.fill({kOpen, 0.0});
-      cut.volume_row_min = 0;
-      cut.volume_row_max = height_px_ - 1;
-      if (cut.clip_to_volume) {
-        // Voxel index a within [-1e-9, size - 1 + 1e-9], as Volume::sample_trilinear wants it. A
-        // row the volume misses entirely keeps its pixels in the tet, as background.
-        next_first = next_last = 0;
-        for (int a = 0; a < 3; ++a) {
-          add_bound(
-              {cut.index_at_origin[a], cut.index_per_col[a], cut.index_per_row[a], -kVolumeEdge},
-              cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
-              cut.volume_row_max);
-          add_bound({-cut.index_at_origin[a], -cut.index_per_col[a], -cut.index_per_row[a],
-                     -(index_max[a] + kVolumeEdge)},
-                    cut.first_in_volume, next_first, cut.last_in_volume, next_last,
-                    cut.volume_row_min, cut.volume_row_max);
-        }
-      }
-      cuts.push_back(cut);
     }
   }
+  if (hi.x() < -kRowMarginPx || lo.x() > width_px_ - 1 + kRowMarginPx || hi.y() < -kRowMarginPx ||
+      lo.y() > height_px_ - 1 + kRowMarginPx) {
+    return;
+  }
+  CutTet cut;
+  cut.row_min = std::max(0, static_cast<int>(std::ceil(lo.y() - kRowMarginPx)));
+  cut.row_max = std::min(height_px_ - 1, static_cast<int>(std::floor(hi.y() + kRowMarginPx)));
+  if (cut.row_min > cut.row_max) return;
+
+  // TetLocator's rule for a usable tet, to the bit, so both skip the same tets.
+  const Eigen::Vector3d& p0 = x[tet[0]];
+  const Eigen::Matrix3d edges = geometry::tet_edge_matrix(x, tet);
+  if (!geometry::usable_tet(edges)) return;
+
+  // Barycentric coordinates (1..3 from the edge matrix's inverse, 0 as the rest) of the pixel
+  // centres: affine in (col, row) because the plane is.
+  const Eigen::Matrix3d inverse = edges.inverse();
+  const Eigen::Vector3d at_origin = inverse * (plane.origin_mm - p0);
+  const Eigen::Vector3d per_col = inverse * plane.per_col_mm;
+  const Eigen::Vector3d per_row = inverse * plane.per_row_mm;
+  cut.first_in_tet.fill({-kOpen, 0.0});
+  cut.last_in_tet.fill({kOpen, 0.0});
+  std::size_t next_first = 0, next_last = 0;
+  add_bound({1.0 - at_origin.sum(), -per_col.sum(), -per_row.sum(), -kBarycentricTolerance},
+            cut.first_in_tet, next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
+  for (int a = 0; a < 3; ++a) {
+    add_bound({at_origin[a], per_col[a], per_row[a], -kBarycentricTolerance}, cut.first_in_tet,
+              next_first, cut.last_in_tet, next_last, cut.row_min, cut.row_max);
+  }
+  if (cut.row_min > cut.row_max) return;
+
+  // Rest position = r0 + [r1-r0 r2-r0 r3-r0] · (barycentric 1..3), then to voxel indices.
+  const Eigen::Vector3d& r0 = rest_mm_[tet[0]];
+  const Eigen::Matrix3d to_index = world_to_index * geometry::tet_edge_matrix(rest_mm_, tet);
+  cut.index_at_origin = world_to_index * (r0 - volume.origin_mm()) + to_index * at_origin;
+  cut.index_per_col = to_index * per_col;
+  cut.index_per_row = to_index * per_row;
+
+  cut.clip_to_volume = !tet_inside_volume_[t];
+  cut.first_in_volume.fill({-kOpen, 0.0});
+  cut.last_in_volume.fill({kOpen, 0.0});
+  cut.volume_row_min = 0;
+  cut.volume_row_max = height_px_ - 1;
+  if (cut.clip_to_volume) {
+    // Voxel index a within [-1e-9, size - 1 + 1e-9], as Volume::sample_trilinear wants it. A
+    // row the volume misses entirely keeps its pixels in the tet, as background.
+    next_first = next_last = 0;
+    for (int a = 0; a < 3; ++a) {
+      add_bound({cut.index_at_origin[a], cut.index_per_col[a], cut.index_per_row[a], -kVolumeEdge},
+                cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
+                cut.volume_row_max);
+      add_bound({-cut.index_at_origin[a], -cut.index_per_col[a], -cut.index_per_row[a],
+                 -(index_max[a] + kVolumeEdge)},
+                cut.first_in_volume, next_first, cut.last_in_volume, next_last, cut.volume_row_min,
+                cut.volume_row_max);
+    }
+  }
+  cuts.push_back(cut);
 }
 
 bool FastSlicer::run_may_be_cut(std::size_t run) const {

@@ -133,6 +133,8 @@ class FastSlicer {
   void draw_cut_rows(const CutTet& cut, int row_first, int row_last,
                      const slicer_detail::VoxelGrid& grid, std::uint8_t background,
                      std::span<std::uint8_t> out) const;
+  // Tet t's cut, appended to `cuts` where the plane cuts it inside the image.
+  void add_cut(std::size_t t, std::vector<CutTet>& cuts) const;
   // Whether run `run` of tets may hold a tet the plane cuts (its nodes' sides, or true for a run
   // without a node list).
   bool run_may_be_cut(std::size_t run) const;
