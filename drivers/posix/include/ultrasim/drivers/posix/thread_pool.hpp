@@ -22,6 +22,8 @@ class ThreadPool final : public hal::JobSystem {
  public:
   // How long a worker that finished a run watches for the next before it sleeps
   // (WorkerGate::join_next): longer than the gaps between a frame's runs, short against the frame.
+  // A SCHED_FIFO worker (--realtime) yields only to threads of its own priority: for this long
+  // after each frame's last run, normal threads on its core (llvmpipe's) wait.
   static constexpr std::chrono::microseconds kPollBeforeSleep{200};
 
   // thread_count includes the calling thread: ThreadPool(2) starts one worker. Values < 1 → 1.
